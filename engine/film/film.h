@@ -1,0 +1,99 @@
+#pragma once
+
+// Pixel reconstruction. Each tile accumulates its samples into a TileFilm that covers the
+// tile grown by the filter's radius (its apron), so a sample near a tile border reaches
+// its neighbours' pixels too. The Film sums tile films in a fixed order and divides by
+// the filter weights: the assembled image has no seams and does not depend on which
+// thread or worker rendered which tile.
+
+#include <memory>
+#include <vector>
+
+#include "core/color.h"
+#include "core/math.h"
+#include "film/image.h"
+
+namespace tessera {
+
+enum class FilterType { kBox, kGaussian, kMitchell };
+
+struct FilterSettings {
+    FilterType type = FilterType::kBox;
+    // Radius in pixels; <= 0 picks the type's default (box 0.5, Gaussian 1.5, Mitchell 2).
+    float radius = 0;
+    float gaussian_sigma = 0.5f;
+    float mitchell_b = 1.0f / 3.0f, mitchell_c = 1.0f / 3.0f;
+};
+
+class Filter {
+  public:
+    virtual ~Filter() = default;
+    // Weight of a sample at `offset` (pixels) from a pixel centre; may be negative (Mitchell).
+    virtual float Evaluate(Vec2 offset) const = 0;
+    virtual float Radius() const = 0;
+};
+
+std::unique_ptr<Filter> MakeFilter(const FilterSettings& settings);
+
+// What the integrator returns for one camera sample.
+struct SampleValue {
+    Rgb L;
+    Rgb albedo;
+    Vec3 normal;     // world-space shading normal of the first hit (zero if none)
+    float depth = 0; // distance along the camera ray to the first hit (0 if none)
+};
+
+// A half-open rectangle of pixels [lo, hi).
+struct PixelBounds {
+    Vec2i lo, hi;
+    int Width() const { return hi.x - lo.x; }
+    int Height() const { return hi.y - lo.y; }
+    bool Empty() const { return hi.x <= lo.x || hi.y <= lo.y; }
+    bool operator==(const PixelBounds&) const = default;
+};
+
+// Splits a width x height image into tiles of tile_size, row by row (the fixed order).
+std::vector<PixelBounds> MakeTiles(Vec2i resolution, int tile_size);
+
+class TileFilm {
+  public:
+    // Channels per pixel: weighted sums of R G B, albedo RGB, normal XYZ, depth, then
+    // the weight sum.
+    static constexpr int kChannels = 11;
+
+    TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter);
+    // p_film in raster coordinates; the sample must lie inside the tile.
+    void AddSample(Vec2 p_film, const SampleValue& v);
+    // The pixels this film holds: the tile grown by the apron, clipped to the image.
+    const PixelBounds& Region() const { return region_; }
+    const PixelBounds& Tile() const { return tile_; }
+    // Region().Width() * Region().Height() * kChannels values, row-major.
+    const std::vector<float>& Data() const { return data_; }
+    std::vector<float>& MutableData() { return data_; }
+
+  private:
+    PixelBounds tile_, region_;
+    const Filter* filter_;
+    float radius_;
+    std::vector<float> data_;
+};
+
+class Film {
+  public:
+    explicit Film(Vec2i resolution);
+    Vec2i Resolution() const { return resolution_; }
+    // Adds a tile film's region. Call in MakeTiles order for bit-identical results.
+    void Merge(const TileFilm& tile);
+    // Adds raw data for `region` (kChannels floats per pixel), e.g. a tile result
+    // that arrived over the network.
+    void Merge(const PixelBounds& region, const std::vector<float>& data);
+    // Divides by the weights: channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z Z.
+    // A is 1 where any sample landed. Pixels with zero weight are black.
+    Image Resolve() const;
+
+  private:
+    Vec2i resolution_;
+    std::vector<double> sums_;  // double: sums over many tiles stay exact enough
+};
+
+}  // namespace tessera

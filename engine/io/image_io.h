@@ -1,0 +1,25 @@
+#pragma once
+
+// Image files through OpenImageIO. Only this module includes OpenImageIO headers.
+
+#include <map>
+#include <string>
+
+#include "film/image.h"
+
+namespace tessera {
+
+// Extra header attributes written into the EXR (e.g. "tessera:spp" -> "64").
+using ImageMetadata = std::map<std::string, std::string>;
+
+// Writes a float (32-bit) EXR with all of the image's channels. The file appears
+// atomically: written to a temporary name in the same folder, then renamed. Throws
+// std::runtime_error with the path and OpenImageIO's message on failure.
+void WriteExr(const std::string& path, const Image& image, const ImageMetadata& metadata);
+// Writes an 8-bit sRGB PNG of the R, G, B channels (clamped to [0,1]), atomically.
+void WritePngPreview(const std::string& path, const Image& image);
+// Reads any image OpenImageIO understands, as float, with its channel names.
+// *metadata (if given) receives the string attributes of the header.
+Image ReadImage(const std::string& path, ImageMetadata* metadata = nullptr);
+
+}  // namespace tessera

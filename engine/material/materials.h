@@ -1,0 +1,40 @@
+#pragma once
+
+// Factories for every built-in material and texture: the one place the scene builder
+// creates them from. Parameters are validated by the builder before these are called.
+
+#include <memory>
+#include <string>
+
+#include "material/material.h"
+#include "material/texture.h"
+
+namespace tessera {
+
+using TextureRef = std::shared_ptr<const Texture>;
+
+std::unique_ptr<Texture> MakeConstantTexture(Rgb value);
+// Alternates `a` and `b` on a grid of `scale` checks per unit of uv.
+std::unique_ptr<Texture> MakeCheckerboardTexture(Rgb a, Rgb b, Vec2 scale);
+// Loads an image through OpenImageIO (bilinear lookup, uv wraps; v = 0 is the image's
+// bottom row). Pixel values are taken as linear unless `srgb` is set. Throws
+// std::runtime_error naming the file if it cannot be read.
+std::unique_ptr<Texture> MakeImageTexture(const std::string& path, bool srgb);
+
+// Lambertian reflector.
+std::unique_ptr<Material> MakeDiffuseMaterial(TextureRef reflectance);
+// Ideal specular reflector with a constant tint.
+std::unique_ptr<Material> MakeMirrorMaterial(TextureRef reflectance);
+// Ideal smooth dielectric (glass) with relative index of refraction `eta` (inside over
+// outside); Fresnel-weighted choice of reflection and refraction on both sides.
+std::unique_ptr<Material> MakeDielectricMaterial(float eta);
+// GGX microfacet conductor; `eta`/`k` the complex index of refraction per channel.
+// alpha is the GGX roughness (alpha = perceptual roughness squared is the caller's job).
+std::unique_ptr<Material> MakeRoughConductorMaterial(Rgb eta, Rgb k, float alpha_x, float alpha_y);
+// GGX microfacet dielectric (Walter et al. 2007), reflection and transmission.
+std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha);
+// A diffuse base under a dielectric coat of index `eta` and GGX roughness `alpha`
+// (alpha = 0: a smooth coat).
+std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha);
+
+}  // namespace tessera

@@ -1,0 +1,33 @@
+#pragma once
+
+// The sampler contract (pbrt's repeatable samplers): after StartPixelSample(pixel, i),
+// the sequence of Get1D/Get2D/GetPixel2D values is a pure function of (seed, pixel, i)
+// and the order of calls. Revisiting a pixel sample reproduces it exactly, whatever
+// thread, tile or worker asks.
+
+#include <cstdint>
+#include <memory>
+
+#include "core/math.h"
+
+namespace tessera {
+
+class Sampler {
+  public:
+    virtual ~Sampler() = default;
+    virtual int SamplesPerPixel() const = 0;
+    // `dim` lets a caller start at a later dimension (e.g. to skip the camera dimensions).
+    virtual void StartPixelSample(Vec2i pixel, int sample_index, int dim = 0) = 0;
+    virtual float Get1D() = 0;
+    virtual Vec2 Get2D() = 0;
+    // The sub-pixel position of the current sample; stratified over the pixel's samples.
+    virtual Vec2 GetPixel2D() = 0;
+    virtual std::unique_ptr<Sampler> Clone() const = 0;
+};
+
+enum class SamplerType { kIndependent, kStratified };
+
+// spp samples per pixel; streams keyed by `seed`.
+std::unique_ptr<Sampler> MakeSampler(SamplerType type, int spp, uint64_t seed);
+
+}  // namespace tessera

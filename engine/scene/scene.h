@@ -1,0 +1,78 @@
+#pragma once
+
+// A renderable scene: geometry in Embree, materials, lights and the camera. Built by the
+// scene loader through the Add* calls, then Commit()ed; immutable and thread-safe after.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "core/color.h"
+#include "core/math.h"
+#include "light/light.h"
+#include "light/light_sampler.h"
+#include "material/material.h"
+#include "scene/interaction.h"
+#include "scene/mesh.h"
+
+namespace tessera {
+
+class EmbreeScene;
+
+// What makes a shape glow: constant radiance on its front side (or both sides).
+struct Emission {
+    Rgb radiance;
+    bool two_sided = false;
+};
+
+class Scene {
+  public:
+    Scene();
+    ~Scene();
+    Scene(const Scene&) = delete;
+    Scene& operator=(const Scene&) = delete;
+
+    // --- construction (single-threaded, before Commit) ---
+    const Material* AddMaterial(std::unique_ptr<Material> material);
+    // World-space mesh. With emission, the mesh becomes an area light.
+    void AddMesh(TriangleMesh mesh, const Material* material, const Emission* emission = nullptr);
+    void AddSphere(const Vec3& center, float radius, const Material* material,
+                   const Emission* emission = nullptr);
+    // Instancing: a prototype holds meshes in object space; each instance places it.
+    // Prototypes cannot emit light.
+    int AddPrototype();
+    void AddMeshToPrototype(int prototype, TriangleMesh mesh, const Material* material);
+    void AddInstance(int prototype, const Transform& object_to_world);
+    void AddLight(std::unique_ptr<Light> light);
+    void SetCamera(std::unique_ptr<Camera> camera);
+    // Builds the BVH, the light list and the light sampler.
+    void Commit();
+
+    // --- queries (thread-safe after Commit) ---
+    // Closest hit with t in (0, t_max).
+    bool Intersect(const Ray& ray, SurfaceInteraction* si, float t_max = kInfinity) const;
+    // Whether anything blocks the segment from p0 to p1 (both ends excluded).
+    bool Occluded(const Vec3& p0, const Vec3& p1) const;
+    // Whether anything blocks the ray within (0, t_max).
+    bool OccludedRay(const Ray& ray, float t_max) const;
+
+    const Camera& GetCamera() const { return *camera_; }
+    bool HasCamera() const { return camera_ != nullptr; }
+    const std::vector<std::unique_ptr<Light>>& Lights() const { return lights_; }
+    const std::vector<const Light*>& InfiniteLights() const { return infinite_lights_; }
+    const LightSampler& GetLightSampler() const { return *light_sampler_; }
+    const Bounds3& Bounds() const { return bounds_; }
+    size_t NumTriangles() const;
+
+  private:
+    std::unique_ptr<EmbreeScene> embree_;
+    std::vector<std::unique_ptr<Material>> materials_;
+    std::vector<std::unique_ptr<Light>> lights_;
+    std::vector<const Light*> infinite_lights_;
+    std::unique_ptr<LightSampler> light_sampler_;
+    std::unique_ptr<Camera> camera_;
+    Bounds3 bounds_;
+};
+
+}  // namespace tessera
