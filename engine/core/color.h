@@ -37,6 +37,7 @@ struct Rgb {
         b *= o.b;
         return *this;
     }
+    Rgb& operator/=(float s) { return *this *= 1 / s; }
     Rgb& operator*=(float s) {
         r *= s;
         g *= s;

@@ -39,8 +39,8 @@ std::unique_ptr<Filter> MakeFilter(const FilterSettings& settings);
 struct SampleValue {
     Rgb L;
     Rgb albedo;
-    Vec3 normal;     // world-space shading normal of the first hit (zero if none)
-    float depth = 0; // distance along the camera ray to the first hit (0 if none)
+    Vec3 normal;      // world-space shading normal of the first hit (zero if none)
+    float depth = 0;  // distance along the camera ray to the first hit (0 if none)
 };
 
 // A half-open rectangle of pixels [lo, hi).
@@ -54,6 +54,8 @@ struct PixelBounds {
 
 // Splits a width x height image into tiles of tile_size, row by row (the fixed order).
 std::vector<PixelBounds> MakeTiles(Vec2i resolution, int tile_size);
+
+class SeparableFilter;  // film/filter.h
 
 class TileFilm {
   public:
@@ -69,13 +71,25 @@ class TileFilm {
     const PixelBounds& Tile() const { return tile_; }
     // Region().Width() * Region().Height() * kChannels values, row-major.
     const std::vector<float>& Data() const { return data_; }
+    // For filling a film with data computed elsewhere; AddSample after writing here
+    // overwrites the pixels it touches from its own sums.
     std::vector<float>& MutableData() { return data_; }
 
   private:
+    void Accumulate(size_t offset, double weight, const double* values);
+
     PixelBounds tile_, region_;
     const Filter* filter_;
     float radius_;
     std::vector<float> data_;
+    // Samples are summed in double and data_ holds those sums rounded once to float: a
+    // pixel's value then differs between tilings only by that one rounding per tile that
+    // reaches it, however many samples it receives.
+    std::vector<double> sums_;
+    const SeparableFilter* separable_ = nullptr;  // null: evaluate in 2D
+    bool unit_box_ = false;                       // box of radius 0.5: one pixel, weight 1
+    std::vector<float> weights_x_;                // per-axis weights of one sample, reused
+    std::vector<float> weights_y_;
 };
 
 class Film {

@@ -18,7 +18,9 @@ using ImageMetadata = std::map<std::string, std::string>;
 void WriteExr(const std::string& path, const Image& image, const ImageMetadata& metadata);
 // Writes an 8-bit sRGB PNG of the R, G, B channels (clamped to [0,1]), atomically.
 void WritePngPreview(const std::string& path, const Image& image);
-// Reads any image OpenImageIO understands, as float, with its channel names.
+// Reads any image OpenImageIO understands, as float, with its channel names. The order
+// of channels is the file's, not necessarily the one written (OpenEXR sorts them by name;
+// OpenImageIO then lists R G B A first): look channels up with Image::ChannelIndex.
 // *metadata (if given) receives the string attributes of the header.
 Image ReadImage(const std::string& path, ImageMetadata* metadata = nullptr);
 

@@ -2,6 +2,7 @@
 
 // Chooses a light for next-event estimation with probability proportional to its power.
 
+#include <unordered_map>
 #include <vector>
 
 #include "core/sampling.h"
@@ -18,6 +19,7 @@ class LightSampler {
 
   private:
     std::vector<const Light*> lights_;
+    std::unordered_map<const Light*, int> index_;
     Distribution1D distribution_;
 };
 

@@ -1,0 +1,122 @@
+#include "integrator/path.h"
+
+#include "core/sampling.h"
+
+namespace tessera {
+
+SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler, ScratchBuffer& arena) const {
+    SampleValue out;
+    Rgb L, beta(1);
+    Ray ray = camera_ray;
+    bool specular_bounce = false;
+    float bsdf_pdf = 0;      // solid-angle pdf of the BSDF sample that made `ray`
+    float eta_scale = 1;     // undoes radiance scaling by refraction for Russian roulette
+    LightSampleContext prev; // the vertex `ray` left from
+    bool emission_only = false;
+    const LightSampler& light_sampler = scene_.GetLightSampler();
+
+    for (int depth = 0;; ++depth) {
+        SurfaceInteraction si;
+        bool hit = scene_.Intersect(ray, &si);
+        // Emission found by the ray: weighted against the light sampling that could
+        // also have found it, unless the ray came from the camera or a specular lobe.
+        if (!hit) {
+            for (const Light* light : scene_.InfiniteLights()) {
+                Rgb Le = light->Le(ray.d);
+                if (Le.IsBlack()) continue;
+                if (depth == 0 || specular_bounce) {
+                    L += beta * Le;
+                } else {
+                    float light_pdf = light_sampler.Pmf(light) * light->PdfLi(prev, ray.d, {}, {});
+                    L += beta * Le * PowerHeuristic(1, bsdf_pdf, 1, light_pdf);
+                }
+            }
+            break;
+        }
+        Vec3 wo = -ray.d;
+        if (depth == 0) {
+            out.normal = si.shading.n;
+            out.depth = si.t;
+        }
+        if (si.area_light) {
+            Rgb Le = si.area_light->L(si.p, si.ng, si.uv, wo);
+            if (!Le.IsBlack()) {
+                if (depth == 0 || specular_bounce) {
+                    L += beta * Le;
+                } else {
+                    float light_pdf = light_sampler.Pmf(si.area_light) *
+                                      si.area_light->PdfLi(prev, ray.d, si.p, si.ng);
+                    L += beta * Le * PowerHeuristic(1, bsdf_pdf, 1, light_pdf);
+                }
+            }
+        }
+        if (emission_only || depth == settings_.max_depth || !si.material) break;
+
+        const Bsdf* bsdf = si.material->GetBsdf(si.TexContext(), arena);
+        if (depth == 0) out.albedo = bsdf->Albedo();
+        Vec3 wo_local = si.shading.ToLocal(wo);
+        LightSampleContext ctx{si.p, si.ng};
+
+        // Every bounce draws the same dimensions, used or not, so that a dimension
+        // means the same thing in every sample of a pixel (what stratification needs).
+        float u_light_pick = sampler.Get1D();
+        Vec2 u_light = sampler.Get2D();
+        float u_lobe = sampler.Get1D();
+        Vec2 u_bsdf = sampler.Get2D();
+        float u_rr = sampler.Get1D();
+
+        // Next-event estimation.
+        bool non_specular = !bsdf->IsSpecular();
+        if (non_specular) {
+            float pick_pmf;
+            const Light* light = light_sampler.Sample(u_light_pick, &pick_pmf);
+            if (light) {
+                if (auto ls = light->SampleLi(ctx, u_light); ls && ls->pdf > 0 && !ls->L.IsBlack()) {
+                    Vec3 wi_local = si.shading.ToLocal(ls->wi);
+                    Rgb f = bsdf->Eval(wo_local, wi_local, TransportMode::kRadiance) *
+                            AbsDot(ls->wi, si.shading.n);
+                    if (!f.IsBlack()) {
+                        Vec3 origin = OffsetRayOrigin(si.p, si.ng, ls->wi);
+                        if (!scene_.Occluded(origin, ls->p_light)) {
+                            float light_pdf = pick_pmf * ls->pdf;
+                            float w = light->IsDelta()
+                                          ? 1.0f
+                                          : PowerHeuristic(1, light_pdf, 1,
+                                                           bsdf->Pdf(wo_local, wi_local,
+                                                                     TransportMode::kRadiance));
+                            L += beta * f * ls->L * (w / light_pdf);
+                        }
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        auto bs = bsdf->Sample(wo_local, u_lobe, u_bsdf, TransportMode::kRadiance);
+        if (!bs || bs->pdf <= 0 || bs->f.IsBlack()) break;
+        Vec3 wi = si.shading.ToWorld(bs->wi);
+        beta *= bs->f * (std::abs(bs->wi.z) / bs->pdf);
+        bsdf_pdf = bs->pdf;
+        specular_bounce = bs->IsSpecular();
+        if (bs->IsTransmission()) eta_scale *= Sqr(bs->eta);
+        prev = ctx;
+        ray = Ray{OffsetRayOrigin(si.p, si.ng, wi), wi, ray.time};
+        // Direct lighting only: the ray just sampled may still find an emitter (its
+        // MIS-weighted half of the estimate), then the path ends.
+        if (direct_only_ && non_specular) {
+            emission_only = true;
+            continue;
+        }
+
+        Rgb rr_beta = beta * eta_scale;
+        if (depth >= settings_.rr_depth && rr_beta.MaxComponent() < 1) {
+            float q = std::max(0.0f, 1 - rr_beta.MaxComponent());
+            if (u_rr < q) break;
+            beta /= 1 - q;
+        }
+    }
+    out.L = L;
+    return out;
+}
+
+}  // namespace tessera

@@ -1,0 +1,24 @@
+#pragma once
+
+// Unidirectional path tracing with next-event estimation and multiple importance
+// sampling (power heuristic) between light sampling and BSDF sampling, Russian roulette
+// after rr_depth bounces. With direct_only, the path ends after the first non-specular
+// vertex: direct lighting, still MIS-weighted, with specular chains followed before it.
+
+#include "integrator/integrator.h"
+
+namespace tessera {
+
+class PathIntegrator final : public Integrator {
+  public:
+    PathIntegrator(const Scene& scene, const IntegratorSettings& settings, bool direct_only)
+        : scene_(scene), settings_(settings), direct_only_(direct_only) {}
+    SampleValue Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena) const override;
+
+  private:
+    const Scene& scene_;
+    IntegratorSettings settings_;
+    bool direct_only_;
+};
+
+}  // namespace tessera

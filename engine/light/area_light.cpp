@@ -1,0 +1,157 @@
+#include "light/area_light.h"
+
+#include <cmath>
+
+#include "core/sampling.h"
+
+namespace tessera {
+namespace {
+
+class TriangleAreaLight final : public Light {
+  public:
+    TriangleAreaLight(std::vector<Vec3> triangles, Rgb radiance, bool two_sided)
+        : vertices_(std::move(triangles)), radiance_(radiance), two_sided_(two_sided) {
+        std::vector<float> areas(vertices_.size() / 3);
+        normals_.resize(areas.size());
+        for (size_t i = 0; i < areas.size(); ++i) {
+            Vec3 c = Cross(vertices_[3 * i + 1] - vertices_[3 * i], vertices_[3 * i + 2] - vertices_[3 * i]);
+            float len = Length(c);
+            areas[i] = 0.5f * len;
+            normals_[i] = len > 0 ? c / len : Vec3(0, 0, 1);
+            area_ += areas[i];
+        }
+        distribution_ = Distribution1D(areas);
+    }
+
+    LightType Type() const override { return LightType::kArea; }
+    Rgb Phi() const override { return radiance_ * (kPi * area_ * (two_sided_ ? 2.0f : 1.0f)); }
+
+    std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2 u) const override {
+        if (area_ <= 0) return std::nullopt;
+        float pmf, u_re;
+        int tri = distribution_.SampleDiscrete(u.x, &pmf, &u_re);
+        Vec2 b = SampleUniformTriangle(Vec2(u_re, u.y));
+        const Vec3* v = &vertices_[3 * tri];
+        Vec3 p = v[0] * b.x + v[1] * b.y + v[2] * (1 - b.x - b.y);
+        Vec3 n = normals_[tri];
+        Vec3 d = p - ctx.p;
+        float dist2 = LengthSquared(d);
+        if (dist2 == 0) return std::nullopt;
+        Vec3 wi = d / std::sqrt(dist2);
+        float cos_light = Dot(n, -wi);
+        if (!two_sided_ && cos_light <= 0) return std::nullopt;
+        if (cos_light == 0) return std::nullopt;
+        float pdf = dist2 / (std::abs(cos_light) * area_);
+        return LightLiSample{radiance_, wi, pdf, p};
+    }
+
+    float PdfLi(const LightSampleContext& ctx, const Vec3& wi, const Vec3& p_light,
+                const Vec3& n_light) const override {
+        float cos_light = std::abs(Dot(n_light, wi));
+        if (cos_light == 0 || area_ <= 0) return 0;
+        return DistanceSquared(ctx.p, p_light) / (cos_light * area_);
+    }
+
+    Rgb L(const Vec3&, const Vec3& n, Vec2, const Vec3& w) const override {
+        if (!two_sided_ && Dot(n, w) <= 0) return {};
+        return radiance_;
+    }
+
+  private:
+    std::vector<Vec3> vertices_;
+    std::vector<Vec3> normals_;
+    Distribution1D distribution_;
+    Rgb radiance_;
+    bool two_sided_;
+    float area_ = 0;
+};
+
+class SphereAreaLight final : public Light {
+  public:
+    SphereAreaLight(const Vec3& center, float radius, Rgb radiance, bool two_sided)
+        : center_(center), radius_(radius), radiance_(radiance), two_sided_(two_sided) {}
+
+    LightType Type() const override { return LightType::kArea; }
+    Rgb Phi() const override {
+        return radiance_ * (kPi * 4 * kPi * radius_ * radius_ * (two_sided_ ? 2.0f : 1.0f));
+    }
+
+    std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2 u) const override {
+        float dist2 = DistanceSquared(ctx.p, center_);
+        float r2 = radius_ * radius_;
+        if (dist2 <= r2 * 1.0001f) return SampleByArea(ctx, u);
+        // Uniform over the cone of directions the sphere subtends. 1 - cos is computed
+        // as sin^2 / (1 + cos) so that small, distant lights keep their precision.
+        float dist = std::sqrt(dist2);
+        float sin2_max = r2 / dist2;
+        float cos_max = SafeSqrt(1 - sin2_max);
+        float one_minus_cos_max = sin2_max / (1 + cos_max);
+        float one_minus_cos = u.x * one_minus_cos_max;
+        float cos_theta = 1 - one_minus_cos;
+        float sin_theta = SafeSqrt(one_minus_cos * (2 - one_minus_cos));
+        float phi = 2 * kPi * u.y;
+        Frame frame((center_ - ctx.p) / dist);
+        Vec3 wi = frame.ToWorld(SphericalDirection(sin_theta, cos_theta, phi));
+        // The nearer intersection of the ray with the sphere, in double for precision.
+        double b = Dot(ctx.p - center_, wi);
+        double c = double(dist2) - r2;
+        double disc = b * b - c;
+        double t = -b - std::sqrt(std::max(0.0, disc));
+        Vec3 p_light = ctx.p + wi * static_cast<float>(t);
+        float pdf = 1 / (2 * kPi * one_minus_cos_max);
+        return LightLiSample{radiance_, wi, pdf, p_light};
+    }
+
+    float PdfLi(const LightSampleContext& ctx, const Vec3& wi, const Vec3& p_light,
+                const Vec3& n_light) const override {
+        float dist2 = DistanceSquared(ctx.p, center_);
+        float r2 = radius_ * radius_;
+        if (dist2 <= r2 * 1.0001f) {
+            float cos_light = std::abs(Dot(n_light, wi));
+            if (cos_light == 0) return 0;
+            return DistanceSquared(ctx.p, p_light) / (cos_light * 4 * kPi * r2);
+        }
+        float sin2_max = r2 / dist2;
+        float cos_max = SafeSqrt(1 - sin2_max);
+        return 1 / (2 * kPi * (sin2_max / (1 + cos_max)));
+    }
+
+    Rgb L(const Vec3&, const Vec3& n, Vec2, const Vec3& w) const override {
+        if (!two_sided_ && Dot(n, w) <= 0) return {};
+        return radiance_;
+    }
+
+  private:
+    std::optional<LightLiSample> SampleByArea(const LightSampleContext& ctx, Vec2 u) const {
+        Vec3 n = SampleUniformSphere(u);
+        Vec3 p = center_ + n * radius_;
+        Vec3 d = p - ctx.p;
+        float dist2 = LengthSquared(d);
+        if (dist2 == 0) return std::nullopt;
+        Vec3 wi = d / std::sqrt(dist2);
+        float cos_light = Dot(n, -wi);
+        if (!two_sided_ && cos_light <= 0) return std::nullopt;
+        if (cos_light == 0) return std::nullopt;
+        float pdf = dist2 / (std::abs(cos_light) * 4 * kPi * radius_ * radius_);
+        return LightLiSample{radiance_, wi, pdf, p};
+    }
+
+    Vec3 center_;
+    float radius_;
+    Rgb radiance_;
+    bool two_sided_;
+};
+
+}  // namespace
+
+std::unique_ptr<Light> MakeTriangleAreaLight(std::vector<Vec3> triangles, Rgb radiance,
+                                             bool two_sided) {
+    return std::make_unique<TriangleAreaLight>(std::move(triangles), radiance, two_sided);
+}
+
+std::unique_ptr<Light> MakeSphereAreaLight(const Vec3& center, float radius, Rgb radiance,
+                                           bool two_sided) {
+    return std::make_unique<SphereAreaLight>(center, radius, radiance, two_sided);
+}
+
+}  // namespace tessera

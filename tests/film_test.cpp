@@ -1,0 +1,449 @@
+// Film and filter tests: tiling, filter shapes, reconstruction of a constant, and the
+// seam-free property that lets tiles render anywhere and merge into one image.
+
+#include "film/film.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/rng.h"
+#include "film/filter.h"
+
+namespace tessera {
+namespace {
+
+// Unit roundoff of float: a value rounded once to float is within kU of it, relatively.
+constexpr double kU = 0x1p-24;
+
+const char* TypeName(FilterType type) {
+    switch (type) {
+        case FilterType::kBox:
+            return "box";
+        case FilterType::kGaussian:
+            return "gaussian";
+        case FilterType::kMitchell:
+            return "mitchell";
+    }
+    return "?";
+}
+
+std::unique_ptr<Filter> MakeDefaultFilter(FilterType type) {
+    FilterSettings settings;
+    settings.type = type;
+    return MakeFilter(settings);
+}
+
+TEST(MakeTilesTest, CoverTheImageExactlyOnceInRowMajorOrder) {
+    const Vec2i resolutions[] = {{64, 48}, {50, 37}, {7, 5}, {1, 1}, {100, 1}, {1, 33}, {16, 16}};
+    const int tile_sizes[] = {1, 8, 13, 16, 64};
+    for (Vec2i res : resolutions) {
+        for (int tile_size : tile_sizes) {
+            SCOPED_TRACE(std::to_string(res.x) + "x" + std::to_string(res.y) + " tile " +
+                         std::to_string(tile_size));
+            std::vector<PixelBounds> tiles = MakeTiles(res, tile_size);
+            std::vector<int> covered(static_cast<size_t>(res.x) * res.y, 0);
+            for (size_t i = 0; i < tiles.size(); ++i) {
+                const PixelBounds& t = tiles[i];
+                ASSERT_FALSE(t.Empty());
+                EXPECT_LE(t.Width(), tile_size);
+                EXPECT_LE(t.Height(), tile_size);
+                // Only the last row and column are clipped.
+                if (t.hi.x != res.x) {
+                    EXPECT_EQ(t.Width(), tile_size);
+                }
+                if (t.hi.y != res.y) {
+                    EXPECT_EQ(t.Height(), tile_size);
+                }
+                if (i > 0) {
+                    const PixelBounds& prev = tiles[i - 1];
+                    EXPECT_TRUE(t.lo.y > prev.lo.y || (t.lo.y == prev.lo.y && t.lo.x > prev.lo.x));
+                }
+                for (int y = t.lo.y; y < t.hi.y; ++y)
+                    for (int x = t.lo.x; x < t.hi.x; ++x) ++covered[y * res.x + x];
+            }
+            for (int c : covered) ASSERT_EQ(c, 1);
+        }
+    }
+    EXPECT_TRUE(MakeTiles({0, 10}, 8).empty());
+    EXPECT_THROW(MakeTiles({10, 10}, 0), std::invalid_argument);
+}
+
+TEST(FilterTest, DefaultsAndBoxShape) {
+    EXPECT_EQ(MakeDefaultFilter(FilterType::kBox)->Radius(), 0.5f);
+    EXPECT_EQ(MakeDefaultFilter(FilterType::kGaussian)->Radius(), 1.5f);
+    EXPECT_EQ(MakeDefaultFilter(FilterType::kMitchell)->Radius(), 2.0f);
+    FilterSettings settings;
+    settings.type = FilterType::kGaussian;
+    settings.radius = 2.5f;
+    EXPECT_EQ(MakeFilter(settings)->Radius(), 2.5f);
+    settings.gaussian_sigma = 0;
+    EXPECT_THROW(MakeFilter(settings), std::invalid_argument);
+
+    auto box = MakeDefaultFilter(FilterType::kBox);
+    EXPECT_EQ(box->Evaluate({0, 0}), 1.0f);
+    EXPECT_EQ(box->Evaluate({0.5f, -0.5f}), 1.0f);
+    EXPECT_EQ(box->Evaluate({0.51f, 0}), 0.0f);
+    EXPECT_EQ(box->Evaluate({0, -0.51f}), 0.0f);
+}
+
+// Midpoint rule over the support; the filters are smooth enough inside for 1e-4.
+double Integrate2D(const Filter& filter, int n = 800) {
+    double r = filter.Radius(), h = 2 * r / n, sum = 0;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            sum += filter.Evaluate(
+                {static_cast<float>(-r + (i + 0.5) * h), static_cast<float>(-r + (j + 0.5) * h)});
+    return sum * h * h;
+}
+
+TEST(FilterTest, GaussianIntegralMatchesClosedForm) {
+    auto filter = MakeDefaultFilter(FilterType::kGaussian);
+    const double r = 1.5, s = 0.5;
+    // 1D: integral of exp(-x^2/2s^2) - exp(-r^2/2s^2) over [-r, r].
+    double one_d = s * std::sqrt(2 * M_PI) * std::erf(r / (s * std::sqrt(2.0))) -
+                   2 * r * std::exp(-r * r / (2 * s * s));
+    EXPECT_NEAR(Integrate2D(*filter), one_d * one_d, 1e-4);
+    EXPECT_EQ(filter->Evaluate({1.5f, 0}), 0.0f);  // falls to zero at the radius
+    EXPECT_EQ(filter->Evaluate({1.6f, 0}), 0.0f);
+    EXPECT_GT(filter->Evaluate({0, 0}), filter->Evaluate({0.3f, 0.2f}));
+    for (float x = -1.5f; x <= 1.5f; x += 0.01f) EXPECT_GE(filter->Evaluate({x, 0.7f}), 0.0f);
+}
+
+TEST(FilterTest, MitchellIsNormalisedAndHasNegativeLobes) {
+    auto filter = MakeDefaultFilter(FilterType::kMitchell);
+    EXPECT_NEAR(Integrate2D(*filter), 1.0, 1e-4);
+    EXPECT_LT(filter->Evaluate({1.5f, 0}), 0.0f);
+    EXPECT_EQ(filter->Evaluate({2.0f, 0.3f}), 0.0f);
+    // B + 2C = 1 makes the unit shifts a partition of unity: the weights one sample gives
+    // the pixels around it sum to one wherever it lands, so a flat field stays flat even
+    // before normalisation.
+    for (int i = 0; i < 200; ++i) {
+        Vec2 p(UniformAt(Hash(3, i), 0) + 10, UniformAt(Hash(3, i), 1) + 10);
+        double sum = 0;
+        for (int y = 6; y < 15; ++y)
+            for (int x = 6; x < 15; ++x) sum += filter->Evaluate({x + 0.5f - p.x, y + 0.5f - p.y});
+        EXPECT_NEAR(sum, 1.0, 1e-5);
+    }
+    // The Gaussian's shifted weights are not exactly flat, but close to their mean.
+    auto gaussian = MakeDefaultFilter(FilterType::kGaussian);
+    double mean = Integrate2D(*gaussian);
+    for (int i = 0; i < 50; ++i) {
+        Vec2 p(UniformAt(Hash(4, i), 0) + 10, UniformAt(Hash(4, i), 1) + 10);
+        double sum = 0;
+        for (int y = 6; y < 15; ++y)
+            for (int x = 6; x < 15; ++x)
+                sum += gaussian->Evaluate({x + 0.5f - p.x, y + 0.5f - p.y});
+        EXPECT_NEAR(sum / mean, 1.0, 0.05);
+    }
+}
+
+TEST(TileFilmTest, RegionIsTileGrownByApronAndClipped) {
+    const Vec2i res(40, 30);
+    const PixelBounds interior{{16, 8}, {24, 16}}, corner{{0, 0}, {8, 8}};
+    auto box = MakeDefaultFilter(FilterType::kBox);
+    auto gaussian = MakeDefaultFilter(FilterType::kGaussian);  // apron ceil(1.0) = 1
+    auto mitchell = MakeDefaultFilter(FilterType::kMitchell);  // apron ceil(1.5) = 2
+    EXPECT_EQ(TileFilm(interior, res, *box).Region(), interior);
+    EXPECT_EQ(TileFilm(interior, res, *gaussian).Region(), (PixelBounds{{15, 7}, {25, 17}}));
+    EXPECT_EQ(TileFilm(interior, res, *mitchell).Region(), (PixelBounds{{14, 6}, {26, 18}}));
+    EXPECT_EQ(TileFilm(corner, res, *mitchell).Region(), (PixelBounds{{0, 0}, {10, 10}}));
+    TileFilm last(PixelBounds{{32, 24}, {40, 30}}, res, *mitchell);
+    EXPECT_EQ(last.Region(), (PixelBounds{{30, 22}, {40, 30}}));
+    EXPECT_EQ(last.Data().size(), static_cast<size_t>(10 * 8 * TileFilm::kChannels));
+}
+
+// Indices of the pixels a sample touched, from which data entries became non-zero.
+std::vector<int> TouchedPixels(const TileFilm& film) {
+    std::vector<int> touched;
+    const auto& data = film.Data();
+    for (size_t p = 0; p * TileFilm::kChannels < data.size(); ++p)
+        if (data[p * TileFilm::kChannels + TileFilm::kChannels - 1] != 0)
+            touched.push_back(static_cast<int>(p));
+    return touched;
+}
+
+TEST(TileFilmTest, UnitBoxTouchesExactlyOnePixel) {
+    auto box = MakeDefaultFilter(FilterType::kBox);
+    const Vec2i res(8, 8);
+    const PixelBounds tile{{0, 0}, {8, 8}};
+    SampleValue v;
+    v.L = Rgb(1, 2, 3);
+    // Inside, on the lower edges (which belong to this pixel) and just below the upper.
+    const Vec2 points[] = {{3.5f, 4.5f}, {3.0f, 4.0f}, {3.0f, 4.5f}, {3.99999976f, 4.99999952f}};
+    for (Vec2 p : points) {
+        TileFilm film(tile, res, *box);
+        film.AddSample(p, v);
+        std::vector<int> touched = TouchedPixels(film);
+        ASSERT_EQ(touched.size(), 1u) << p.x << "," << p.y;
+        EXPECT_EQ(touched[0], 4 * 8 + 3);
+        EXPECT_EQ(film.Data()[touched[0] * TileFilm::kChannels + 2], 3.0f);
+    }
+    // Positions outside the film or not numbers are dropped, not written out of bounds.
+    TileFilm film(tile, res, *box);
+    film.AddSample({-0.5f, 2}, v);
+    film.AddSample({8.0f, 2}, v);
+    film.AddSample({std::nanf(""), 2}, v);
+    EXPECT_TRUE(TouchedPixels(film).empty());
+}
+
+TEST(TileFilmTest, WiderFiltersTouchTheirFootprint) {
+    const Vec2i res(16, 16);
+    const PixelBounds tile{{4, 4}, {12, 12}};
+    SampleValue v;
+    v.L = Rgb(1);
+    struct Case {
+        FilterType type;
+        Vec2 p;
+        size_t expected;
+    };
+    // Centres within (p - r, p + r] per axis: 3 for the Gaussian (r = 1.5), 4 for Mitchell.
+    const Case cases[] = {{FilterType::kGaussian, {8.5f, 8.5f}, 9},
+                          {FilterType::kGaussian, {8.2f, 8.7f}, 9},
+                          {FilterType::kMitchell, {8.2f, 8.7f}, 16},
+                          {FilterType::kMitchell, {4.0f, 11.9f}, 16}};
+    for (const Case& c : cases) {
+        auto filter = MakeDefaultFilter(c.type);
+        TileFilm film(tile, res, *filter);
+        film.AddSample(c.p, v);
+        EXPECT_EQ(TouchedPixels(film).size(), c.expected) << TypeName(c.type);
+    }
+}
+
+// A deterministic, thread-independent stand-in for a renderer's samples: position and
+// every channel come from hashes of (pixel, sample index).
+void SyntheticSample(int x, int y, int s, Vec2* p, SampleValue* v) {
+    uint64_t key = Hash(0x5eed, x, y, s);
+    *p = Vec2(x + UniformAt(key, 0), y + UniformAt(key, 1));
+    // A smooth ramp plus noise and a bright speck: values of varied magnitude.
+    float bright = UniformAt(key, 9) < 0.02f ? 50.0f : 0.0f;
+    v->L = Rgb(0.1f * x + UniformAt(key, 2) + bright, 0.05f * y + UniformAt(key, 3),
+               UniformAt(key, 4));
+    v->albedo = Rgb(UniformAt(key, 5), 0.5f, UniformAt(key, 6));
+    v->normal = Normalize(Vec3(UniformAt(key, 7) - 0.5f, UniformAt(key, 8) - 0.5f, 1.0f));
+    v->depth = 3 + 10 * UniformAt(key, 10);
+}
+
+constexpr int kSpp = 4;
+
+Image RenderTiled(Vec2i res, int tile_size, const Filter& filter) {
+    Film film(res);
+    for (const PixelBounds& tile : MakeTiles(res, tile_size)) {
+        TileFilm tile_film(tile, res, filter);
+        Vec2 p;
+        SampleValue v;
+        for (int y = tile.lo.y; y < tile.hi.y; ++y)
+            for (int x = tile.lo.x; x < tile.hi.x; ++x)
+                for (int s = 0; s < kSpp; ++s) {
+                    SyntheticSample(x, y, s, &p, &v);
+                    tile_film.AddSample(p, v);
+                }
+        film.Merge(tile_film);
+    }
+    return film.Resolve();
+}
+
+// What the film's sums should be, computed directly per pixel in double, with the absolute
+// sums that bound how far one float rounding per tile can move them.
+struct ReferencePixel {
+    double sum[TileFilm::kChannels] = {};
+    double abs_sum[TileFilm::kChannels] = {};
+};
+
+std::vector<ReferencePixel> ReferenceSums(Vec2i res, const Filter& filter) {
+    std::vector<ReferencePixel> ref(static_cast<size_t>(res.x) * res.y);
+    const double r = filter.Radius();
+    const int reach = static_cast<int>(std::ceil(r)) + 1;
+    Vec2 p;
+    SampleValue v;
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x) {
+            ReferencePixel& px = ref[y * res.x + x];
+            for (int sy = std::max(0, y - reach); sy <= std::min(res.y - 1, y + reach); ++sy)
+                for (int sx = std::max(0, x - reach); sx <= std::min(res.x - 1, x + reach); ++sx)
+                    for (int s = 0; s < kSpp; ++s) {
+                        SyntheticSample(sx, sy, s, &p, &v);
+                        double dx = x + 0.5 - p.x, dy = y + 0.5 - p.y;
+                        if (!(dx > -r && dx <= r && dy > -r && dy <= r)) continue;
+                        double w = filter.Evaluate({(x + 0.5f) - p.x, (y + 0.5f) - p.y});
+                        const double values[TileFilm::kChannels] = {
+                            v.L.r,      v.L.g,      v.L.b,      v.albedo.r, v.albedo.g, v.albedo.b,
+                            v.normal.x, v.normal.y, v.normal.z, v.depth,    1.0};
+                        for (int c = 0; c < TileFilm::kChannels; ++c) {
+                            px.sum[c] += w * values[c];
+                            px.abs_sum[c] += std::abs(w * values[c]);
+                        }
+                    }
+        }
+    return ref;
+}
+
+// Seams. Every tiling must give the image the sums define, to within what the design
+// allows: a tile film sums its samples in double and hands the Film each pixel's partial
+// sum rounded once to float (its transport format); the Film adds partials in double. A
+// pixel that k tiles reach therefore carries k roundings, each at most 2^-24 of that
+// tile's share, so its numerator is within 2^-24 * sum|w v| of the exact sum and its
+// weight within 2^-24 * sum|w|, however many samples it has. That bound is checked per
+// pixel and channel against a direct double-precision reference; it is a few float ulps,
+// orders of magnitude below a fixed 1e-6, and it does not grow with the sample count.
+// Pixels that only one tile reaches in every tiling, and every pixel of a radius-0.5 box
+// (which never reaches past its own tile), must be bitwise identical across tilings.
+class SeamTest : public ::testing::TestWithParam<FilterType> {};
+
+TEST_P(SeamTest, TilingsGiveTheSameImage) {
+    const Vec2i res(61, 47);  // no tile size divides it
+    auto filter = MakeDefaultFilter(GetParam());
+    const Image whole = RenderTiled(res, std::max(res.x, res.y), *filter);
+    const std::vector<ReferencePixel> ref = ReferenceSums(res, *filter);
+    const int apron = static_cast<int>(std::ceil(filter->Radius() - 0.5f));
+    // Tile channel c of the sums -> image channel (A sits after B).
+    auto image_channel = [](int c) { return c < 3 ? c : c + 1; };
+
+    for (int tile_size : {8, 16, 13, std::max(res.x, res.y)}) {
+        SCOPED_TRACE(std::string(TypeName(GetParam())) + " tile " + std::to_string(tile_size));
+        const Image image = RenderTiled(res, tile_size, *filter);
+        ASSERT_EQ(image.channels, whole.channels);
+        // Largest difference from the one-tile image, in units of one float rounding of
+        // the pixel's sums (kU * sum|w v| / sum w): expected to be O(1).
+        double max_difference = 0;
+        for (int y = 0; y < res.y; ++y)
+            for (int x = 0; x < res.x; ++x) {
+                const ReferencePixel& px = ref[y * res.x + x];
+                const double weight = px.sum[TileFilm::kChannels - 1];
+                ASSERT_GT(weight, 0.1);
+                const double weight_err = kU * px.abs_sum[TileFilm::kChannels - 1] + 1e-13 * weight;
+                EXPECT_EQ(image.At(x, y, 3), 1.0f);
+                for (int c = 0; c < TileFilm::kChannels - 1; ++c) {
+                    const double expected = px.sum[c] / weight;
+                    const double sum_err = kU * px.abs_sum[c] + 1e-13 * px.abs_sum[c];
+                    const double bound =
+                        (sum_err + std::abs(expected) * weight_err) / (weight - weight_err) +
+                        kU * std::abs(expected) * 1.01;
+                    const float got = image.At(x, y, image_channel(c));
+                    ASSERT_LE(std::abs(got - expected), bound)
+                        << "pixel " << x << "," << y << " channel " << c;
+                    const double rounding =
+                        kU *
+                        (px.abs_sum[c] + std::abs(expected) * px.abs_sum[TileFilm::kChannels - 1]) /
+                        weight;
+                    max_difference =
+                        std::max(max_difference,
+                                 std::abs(got - whole.At(x, y, image_channel(c))) / rounding);
+                }
+                // Reached from one tile only: identical order of identical additions.
+                const int tx = x % tile_size, ty = y % tile_size;
+                const bool single_tile =
+                    tx >= apron && tx < tile_size - apron && ty >= apron && ty < tile_size - apron;
+                if (single_tile || GetParam() == FilterType::kBox) {
+                    for (int c = 0; c < image.NumChannels(); ++c)
+                        ASSERT_EQ(image.At(x, y, c), whole.At(x, y, c))
+                            << "pixel " << x << "," << y << " channel " << c;
+                }
+            }
+        std::cout << TypeName(GetParam()) << " tile " << tile_size
+                  << ": largest difference from the one-tile image " << max_difference
+                  << " roundings\n";
+        EXPECT_LE(max_difference, 4.0);
+        if (GetParam() == FilterType::kBox) {
+            EXPECT_EQ(max_difference, 0);
+        }
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(AllFilters, SeamTest,
+                         ::testing::Values(FilterType::kBox, FilterType::kGaussian,
+                                           FilterType::kMitchell),
+                         [](const auto& info) { return std::string(TypeName(info.param)); });
+
+TEST(FilmTest, ConstantRadianceGivesConstantImage) {
+    const Vec2i res(23, 17);
+    SampleValue v;
+    v.L = Rgb(0.3f, 1.7f, 12.5f);
+    v.albedo = Rgb(0.2f, 0.4f, 0.8f);
+    v.normal = Vec3(0, 0.6f, 0.8f);
+    v.depth = 7.25f;
+    const float expected[] = {0.3f, 1.7f, 12.5f, 1.0f, 0.2f, 0.4f, 0.8f, 0.0f, 0.6f, 0.8f, 7.25f};
+    for (FilterType type : {FilterType::kBox, FilterType::kGaussian, FilterType::kMitchell}) {
+        SCOPED_TRACE(TypeName(type));
+        auto filter = MakeDefaultFilter(type);
+        Film film(res);
+        for (const PixelBounds& tile : MakeTiles(res, 8)) {
+            TileFilm tile_film(tile, res, *filter);
+            for (int y = tile.lo.y; y < tile.hi.y; ++y)
+                for (int x = tile.lo.x; x < tile.hi.x; ++x)
+                    for (int s = 0; s < 8; ++s) {
+                        uint64_t key = Hash(11, x, y, s);
+                        tile_film.AddSample({x + UniformAt(key, 0), y + UniformAt(key, 1)}, v);
+                    }
+            film.Merge(tile_film);
+        }
+        Image image = film.Resolve();
+        ASSERT_EQ(image.NumChannels(), 11);
+        EXPECT_EQ(image.ChannelIndex("albedo.G"), 5);
+        EXPECT_EQ(image.ChannelIndex("Z"), 10);
+        for (int y = 0; y < res.y; ++y)
+            for (int x = 0; x < res.x; ++x)
+                for (int c = 0; c < 11; ++c)
+                    // Ratio of two sums of the same weights: a few roundings at most.
+                    ASSERT_NEAR(image.At(x, y, c), expected[c], 4 * kU * expected[c])
+                        << x << "," << y << " channel " << image.channels[c];
+    }
+}
+
+TEST(FilmTest, PixelsWithoutSamplesAreBlackWithZeroAlpha) {
+    const Vec2i res(16, 16);
+    auto filter = MakeDefaultFilter(FilterType::kBox);
+    Film film(res);
+    TileFilm tile(PixelBounds{{0, 0}, {8, 8}}, res, *filter);
+    SampleValue v;
+    v.L = Rgb(1);
+    tile.AddSample({2.5f, 3.5f}, v);
+    film.Merge(tile);
+    Image image = film.Resolve();
+    EXPECT_EQ(image.At(2, 3, 0), 1.0f);
+    EXPECT_EQ(image.At(2, 3, 3), 1.0f);
+    for (int c = 0; c < 11; ++c) EXPECT_EQ(image.At(10, 10, c), 0.0f);
+}
+
+TEST(FilmTest, MergeOfRawDataEqualsMergeOfTileFilm) {
+    const Vec2i res(30, 20);
+    auto filter = MakeDefaultFilter(FilterType::kMitchell);
+    Film direct(res), raw(res);
+    for (const PixelBounds& tile : MakeTiles(res, 16)) {
+        TileFilm tile_film(tile, res, *filter);
+        Vec2 p;
+        SampleValue v;
+        for (int y = tile.lo.y; y < tile.hi.y; ++y)
+            for (int x = tile.lo.x; x < tile.hi.x; ++x)
+                for (int s = 0; s < kSpp; ++s) {
+                    SyntheticSample(x, y, s, &p, &v);
+                    tile_film.AddSample(p, v);
+                }
+        direct.Merge(tile_film);
+        // As if it crossed the network: a copy of the region and its floats.
+        PixelBounds region = tile_film.Region();
+        std::vector<float> data(tile_film.Data());
+        raw.Merge(region, data);
+    }
+    Image a = direct.Resolve(), b = raw.Resolve();
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+}
+
+TEST(FilmTest, MergeRejectsMalformedData) {
+    Film film({10, 10});
+    std::vector<float> data(4 * 4 * TileFilm::kChannels);
+    EXPECT_NO_THROW(film.Merge(PixelBounds{{6, 6}, {10, 10}}, data));
+    EXPECT_THROW(film.Merge(PixelBounds{{7, 7}, {11, 11}}, data), std::invalid_argument);
+    EXPECT_THROW(film.Merge(PixelBounds{{-1, 0}, {3, 4}}, data), std::invalid_argument);
+    data.pop_back();
+    EXPECT_THROW(film.Merge(PixelBounds{{6, 6}, {10, 10}}, data), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tessera

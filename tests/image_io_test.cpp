@@ -1,0 +1,228 @@
+// Image file tests: EXR round trips bit for bit with metadata, the PNG preview's sRGB
+// encoding, atomic writes, and errors that name the file.
+
+#include "io/image_io.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh folder per test, removed afterwards.
+class ImageIoTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir_ = fs::temp_directory_path() /
+               ("tessera_image_io_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    std::string PathOf(const std::string& name) const { return (dir_ / name).string(); }
+    // Files in the folder, to show that no temporary was left behind.
+    std::vector<std::string> Files() const {
+        std::vector<std::string> files;
+        for (const auto& entry : fs::directory_iterator(dir_))
+            files.push_back(entry.path().filename().string());
+        return files;
+    }
+
+    fs::path dir_;
+};
+
+Image MakeRenderLikeImage(int width, int height) {
+    Image image;
+    image.width = width;
+    image.height = height;
+    image.channels = {"R",        "G",   "B",   "A",   "albedo.R", "albedo.G",
+                      "albedo.B", "N.X", "N.Y", "N.Z", "Z"};
+    image.pixels.resize(static_cast<size_t>(width) * height * image.channels.size());
+    // Values that a lossy or half-float path would not keep: many mantissa bits, large,
+    // tiny, negative, and a few specials.
+    for (size_t i = 0; i < image.pixels.size(); ++i)
+        image.pixels[i] = std::sin(static_cast<float>(i) * 0.731f) * std::exp2f(i % 37 - 18.0f);
+    image.pixels[3] = std::numeric_limits<float>::infinity();
+    image.pixels[5] = -0.0f;
+    image.pixels[7] = std::numeric_limits<float>::denorm_min();
+    image.pixels[9] = 65504.0f * 1000;
+    return image;
+}
+
+TEST_F(ImageIoTest, ExrRoundTripIsBitExactWithChannelsAndMetadata) {
+    const Image image = MakeRenderLikeImage(37, 21);
+    const ImageMetadata metadata = {{"tessera:spp", "64"},
+                                    {"tessera:scene", "scenes/cornell box.json"},
+                                    {"tessera:git", "95c3cee"}};
+    const std::string path = PathOf("render.exr");
+    WriteExr(path, image, metadata);
+    EXPECT_EQ(Files(), std::vector<std::string>{"render.exr"});
+
+    ImageMetadata read_metadata;
+    const Image read = ReadImage(path, &read_metadata);
+    ASSERT_EQ(read.width, image.width);
+    ASSERT_EQ(read.height, image.height);
+    ASSERT_EQ(read.NumChannels(), image.NumChannels());
+    // Compare by name: the file format may store channels in its own order.
+    for (int c = 0; c < image.NumChannels(); ++c) {
+        const int rc = read.ChannelIndex(image.channels[c]);
+        ASSERT_GE(rc, 0) << "missing channel " << image.channels[c];
+        for (int y = 0; y < image.height; ++y)
+            for (int x = 0; x < image.width; ++x) {
+                float a = image.At(x, y, c), b = read.At(x, y, rc);
+                ASSERT_EQ(std::memcmp(&a, &b, sizeof(float)), 0)
+                    << image.channels[c] << " at " << x << "," << y << ": " << a << " vs " << b;
+            }
+    }
+    for (const auto& [name, value] : metadata) {
+        ASSERT_TRUE(read_metadata.count(name)) << name;
+        EXPECT_EQ(read_metadata.at(name), value);
+    }
+    EXPECT_EQ(read_metadata["compression"], "zip");
+}
+
+TEST_F(ImageIoTest, ExrChannelOrderIsTheReadersNotTheWriters) {
+    // OpenEXR stores channels sorted by name and OpenImageIO lists R G B A first when
+    // reading; the order written is not kept, which is why callers look channels up by name.
+    const Image image = MakeRenderLikeImage(4, 3);
+    WriteExr(PathOf("order.exr"), image, {});
+    std::vector<std::string> read = ReadImage(PathOf("order.exr")).channels;
+    ASSERT_EQ(read.size(), image.channels.size());
+    EXPECT_EQ(std::vector<std::string>(read.begin(), read.begin() + 4),
+              (std::vector<std::string>{"R", "G", "B", "A"}));
+    std::vector<std::string> written = image.channels;
+    std::sort(read.begin(), read.end());
+    std::sort(written.begin(), written.end());
+    EXPECT_EQ(read, written);
+}
+
+TEST_F(ImageIoTest, PngPreviewIsEightBitSrgb) {
+    Image image;
+    image.width = 4;
+    image.height = 2;
+    image.channels = {"R", "G", "B", "A"};
+    image.pixels = {0.5f,       0.0f,   1.0f,
+                    1,  // 0.5 linear is 188 in sRGB; the ends are exact
+                    0.18f,      0.001f, 0.0031308f,
+                    1,  // mid grey; linear segment of the curve
+                    2.0f,       -1.0f,  std::nanf(""),
+                    1,  // clamped above and below; NaN to black
+                    0.2158605f, 0.05f,  0.9f,
+                    1,  // 0.2158605 linear is 128/255 in sRGB
+                    0,          0,      0,
+                    0,          0,      0,
+                    0,          0,      0,
+                    0,          0,      0,
+                    0,          0,      0,
+                    0};
+    const std::string path = PathOf("preview.png");
+    WritePngPreview(path, image);
+    EXPECT_EQ(Files(), std::vector<std::string>{"preview.png"});
+
+    const Image read = ReadImage(path);
+    ASSERT_EQ(read.width, 4);
+    ASSERT_EQ(read.height, 2);
+    ASSERT_EQ(read.NumChannels(), 3);
+    auto byte = [&](int x, int y, int c) {
+        return static_cast<int>(std::lround(read.At(x, y, c) * 255.0f));
+    };
+    EXPECT_EQ(byte(0, 0, 0), 188);
+    EXPECT_EQ(byte(0, 0, 1), 0);
+    EXPECT_EQ(byte(0, 0, 2), 255);
+    EXPECT_EQ(byte(1, 0, 0), 118);  // 1.055 * 0.18^(1/2.4) - 0.055 = 0.4614 -> 117.7
+    EXPECT_EQ(byte(1, 0, 1), 3);    // 12.92 * 0.001 * 255 = 3.29
+    EXPECT_EQ(byte(1, 0, 2), 10);   // 0.04045 * 255 = 10.3
+    EXPECT_EQ(byte(2, 0, 0), 255);
+    EXPECT_EQ(byte(2, 0, 1), 0);
+    EXPECT_EQ(byte(2, 0, 2), 0);
+    EXPECT_EQ(byte(3, 0, 0), 128);
+    EXPECT_EQ(byte(3, 0, 1), 63);   // 0.2479 * 255 = 63.2
+    EXPECT_EQ(byte(3, 0, 2), 243);  // 0.9547 * 255 = 243.4
+}
+
+TEST_F(ImageIoTest, PngPreviewNeedsRgb) {
+    Image image;
+    image.width = image.height = 1;
+    image.channels = {"Z"};
+    image.pixels = {1};
+    EXPECT_THROW(WritePngPreview(PathOf("depth.png"), image), std::runtime_error);
+    EXPECT_TRUE(Files().empty());
+}
+
+TEST_F(ImageIoTest, RewritingReplacesTheFile) {
+    Image image = MakeRenderLikeImage(3, 3);
+    const std::string path = PathOf("again.exr");
+    WriteExr(path, image, {{"pass", "1"}});
+    image.pixels[0] = 42;
+    WriteExr(path, image, {{"pass", "2"}});
+    ImageMetadata metadata;
+    EXPECT_EQ(ReadImage(path, &metadata).pixels[0], 42.0f);
+    EXPECT_EQ(metadata["pass"], "2");
+    EXPECT_EQ(Files(), std::vector<std::string>{"again.exr"});
+}
+
+// Expects `call` to throw std::runtime_error whose message names `path`.
+template <typename F>
+void ExpectThrowsNaming(F call, const std::string& path) {
+    try {
+        call();
+        ADD_FAILURE() << "no exception for " << path;
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+}
+
+TEST_F(ImageIoTest, WritingIntoMissingFolderThrowsAndLeavesNothing) {
+    const Image image = MakeRenderLikeImage(4, 4);
+    const std::string exr = PathOf("missing/render.exr"), png = PathOf("missing/preview.png");
+    ExpectThrowsNaming([&] { WriteExr(exr, image, {}); }, exr);
+    ExpectThrowsNaming([&] { WritePngPreview(png, image); }, png);
+    EXPECT_FALSE(fs::exists(dir_ / "missing"));
+    EXPECT_TRUE(Files().empty());
+}
+
+TEST_F(ImageIoTest, FailedRenameRemovesTheTemporary) {
+    // The target is a non-empty folder: the file is written, the rename must fail.
+    fs::create_directories(dir_ / "taken.exr" / "inside");
+    const std::string path = PathOf("taken.exr");
+    ExpectThrowsNaming([&] { WriteExr(path, MakeRenderLikeImage(2, 2), {}); }, path);
+    EXPECT_EQ(Files(), std::vector<std::string>{"taken.exr"});
+}
+
+TEST_F(ImageIoTest, ReadingMissingOrGarbageFileThrowsNamingIt) {
+    const std::string missing = PathOf("nothing.exr");
+    ExpectThrowsNaming([&] { ReadImage(missing); }, missing);
+
+    const std::string garbage = PathOf("garbage.exr");
+    std::ofstream(garbage) << "this is not an OpenEXR file, whatever its name says";
+    ExpectThrowsNaming([&] { ReadImage(garbage); }, garbage);
+
+    // A real header followed by too few bytes of pixels.
+    const std::string truncated = PathOf("truncated.exr");
+    WriteExr(truncated, MakeRenderLikeImage(64, 64), {});
+    fs::resize_file(truncated, fs::file_size(truncated) / 2);
+    ExpectThrowsNaming([&] { ReadImage(truncated); }, truncated);
+}
+
+TEST_F(ImageIoTest, MalformedImageIsRejected) {
+    Image image = MakeRenderLikeImage(4, 4);
+    image.pixels.pop_back();
+    const std::string path = PathOf("bad.exr");
+    ExpectThrowsNaming([&] { WriteExr(path, image, {}); }, path);
+    EXPECT_TRUE(Files().empty());
+}
+
+}  // namespace
+}  // namespace tessera
