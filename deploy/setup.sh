@@ -16,7 +16,7 @@ PACKAGES=(
   libbenchmark-dev
   libcli11-dev
   libtinyobjloader-dev
-  libxxhash-dev libzstd-dev
+  libxxhash-dev libzstd-dev libssl-dev
   python3-yaml
 )
 

@@ -4,6 +4,7 @@
 // Objects placed here are never destroyed, so they must be trivially destructible.
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <new>
 #include <type_traits>
@@ -30,7 +31,10 @@ class ScratchBuffer {
 
   private:
     void* Allocate(size_t bytes, size_t align) {
-        size_t start = (offset_ + align - 1) & ~(align - 1);
+        // Align the address, not the offset: the buffer itself is only aligned for
+        // ordinary types, and a type may ask for more (alignas(64) to fill a cache line).
+        auto base = reinterpret_cast<uintptr_t>(data_.get());
+        size_t start = ((base + offset_ + align - 1) & ~(uintptr_t(align) - 1)) - base;
         if (start + bytes <= size_) {
             offset_ = start + bytes;
             return data_.get() + start;

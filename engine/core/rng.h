@@ -43,31 +43,42 @@ inline constexpr float UniformAt(uint64_t key, uint64_t dim) {
 }
 
 // A pseudo-random permutation of [0, n) chosen by `seed`, evaluated one element at a
-// time: a bijection on the enclosing power-of-two range (xor-shifts and odd multiplies
-// are each invertible there) walked until it lands inside [0, n).
+// time (Kensler 2013, "Correlated Multi-Jittered Sampling"): a hash that is a bijection on
+// the enclosing power-of-two range (xor-shifts of the masked value and odd multiplies
+// are each invertible there), walked until it lands inside [0, n), then rotated by a
+// seed-dependent offset. The seed is mixed first so that every one of its 64 bits
+// matters: sequential seeds (pixel indices) must not share or xor-relate permutations.
 inline uint32_t PermutationElement(uint32_t i, uint32_t n, uint64_t seed) {
     if (n <= 1) return 0;
-    uint32_t mask = n - 1;
-    mask |= mask >> 1;
-    mask |= mask >> 2;
-    mask |= mask >> 4;
-    mask |= mask >> 8;
-    mask |= mask >> 16;
-    int bits = 0;
-    while ((mask >> bits) != 0) ++bits;
-    uint32_t s0 = static_cast<uint32_t>(seed), s1 = static_cast<uint32_t>(seed >> 32);
+    uint32_t w = n - 1;
+    w |= w >> 1;
+    w |= w >> 2;
+    w |= w >> 4;
+    w |= w >> 8;
+    w |= w >> 16;
+    uint64_t mixed = MixBits(seed + 0x3c6ef372fe94f82bull);
+    uint32_t p = static_cast<uint32_t>(mixed), offset = static_cast<uint32_t>(mixed >> 32);
     do {
-        i ^= s0 & mask;
-        i = (i * 0x9e3779b1u) & mask;
-        i ^= i >> std::max(1, bits / 2);
-        i = (i * (s1 | 1u)) & mask;
-        i ^= (s1 >> 7) & mask;
-        i = (i * 0x85ebca77u) & mask;
-        i ^= i >> std::max(1, (bits + 2) / 3);
-        i = (i * 0xc2b2ae3du) & mask;
-        i ^= i >> std::max(1, bits / 2);
+        i ^= p;
+        i *= 0xe170893du;
+        i ^= p >> 16;
+        i ^= (i & w) >> 4;
+        i ^= p >> 8;
+        i *= 0x0929eb3fu;
+        i ^= p >> 23;
+        i ^= (i & w) >> 1;
+        i *= 1u | p >> 27;
+        i *= 0x6935fa69u;
+        i ^= (i & w) >> 11;
+        i *= 0x74dcb303u;
+        i ^= (i & w) >> 2;
+        i *= 0x9e501cc3u;
+        i ^= (i & w) >> 2;
+        i *= 0xc860a3dfu;
+        i &= w;
+        i ^= i >> 5;
     } while (i >= n);
-    return i;
+    return static_cast<uint32_t>((uint64_t(i) + offset) % n);
 }
 
 // A sequential generator (PCG32, O'Neill 2014) for work that consumes an unbounded

@@ -63,19 +63,17 @@ Distribution1D::Distribution1D(std::span<const float> func)
     : func_(func.begin(), func.end()), cdf_(func.size() + 1) {
     int n = Count();
     for (float& f : func_) f = std::abs(f);
-    // Accumulate in double so that long tables keep an exact last entry.
-    double sum = 0;
-    cdf_[0] = 0;
-    for (int i = 0; i < n; ++i) {
-        sum += func_[i] / double(n);
-        cdf_[i + 1] = static_cast<float>(sum);
-    }
+    // Accumulate and normalise in double, rounding each entry to float once. Normalising
+    // entries already rounded to float could push an entry past 1 (a CDF that is not
+    // monotonic) or leave the last nonzero bin's end below 1, a sliver through which the
+    // zero bins after it get sampled. This way every entry from the last nonzero bin on
+    // is exactly 1.
+    std::vector<double> running(n + 1, 0.0);
+    for (int i = 0; i < n; ++i) running[i + 1] = running[i] + func_[i] / double(n);
+    double sum = running[n];
     func_integral_ = static_cast<float>(sum);
-    if (sum == 0) {
-        for (int i = 1; i <= n; ++i) cdf_[i] = float(i) / n;
-    } else {
-        for (int i = 1; i <= n; ++i) cdf_[i] = static_cast<float>(cdf_[i] / sum);
-    }
+    for (int i = 0; i <= n; ++i)
+        cdf_[i] = sum > 0 ? static_cast<float>(running[i] / sum) : float(i) / n;
     cdf_[n] = 1;
 }
 
@@ -86,6 +84,16 @@ static int FindInterval(const std::vector<float>& cdf, float u) {
     return std::clamp(i, 0, static_cast<int>(cdf.size()) - 2);
 }
 
+// Nudges x into bin i of n, both exactly and as float arithmetic sees it: (i + du) / n
+// rounds into the next bin for du close to 1 (or the previous one for du = 0), and then
+// the sample and the pdf reported with it would belong to different bins.
+static float ClampToBin(float x, int i, int n) {
+    while (x > 0 && (double(x) * n >= i + 1 || static_cast<int>(x * n) > i))
+        x = std::nextafter(x, 0.0f);
+    while (double(x) * n < i || static_cast<int>(x * n) < i) x = std::nextafter(x, 1.0f);
+    return x;
+}
+
 float Distribution1D::SampleContinuous(float u, float* pdf, int* offset) const {
     int i = FindInterval(cdf_, u);
     if (offset) *offset = i;
@@ -93,7 +101,7 @@ float Distribution1D::SampleContinuous(float u, float* pdf, int* offset) const {
     float width = cdf_[i + 1] - cdf_[i];
     if (width > 0) du /= width;
     if (pdf) *pdf = func_integral_ > 0 ? func_[i] / func_integral_ : 1.0f;
-    return std::min((i + du) / Count(), kOneMinusEpsilon);
+    return ClampToBin(std::min((i + du) / Count(), kOneMinusEpsilon), i, Count());
 }
 
 int Distribution1D::SampleDiscrete(float u, float* pmf, float* u_remapped) const {
@@ -127,7 +135,7 @@ float Distribution2D::Pdf(Vec2 p) const {
     int nu = conditional_[0].Count(), nv = marginal_.Count();
     int iu = std::clamp(static_cast<int>(p.x * nu), 0, nu - 1);
     int iv = std::clamp(static_cast<int>(p.y * nv), 0, nv - 1);
-    if (marginal_.Integral() == 0) return 0;
+    if (marginal_.Integral() == 0) return 1;
     return conditional_[iv].Func()[iu] / marginal_.Integral();
 }
 

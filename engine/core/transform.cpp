@@ -30,10 +30,15 @@ Mat4 Transpose(const Mat4& a) {
 }
 
 bool Inverse(const Mat4& a, Mat4* out) {
-    // Gauss-Jordan elimination with partial pivoting, in double.
+    // Gauss-Jordan elimination with partial pivoting, in double. A NaN or infinite entry
+    // would slip past the pivot test (comparisons with NaN are false) and fill the
+    // inverse with NaNs, so it counts as singular.
     double w[4][8];
     for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 8; ++j) w[i][j] = j < 4 ? a.m[i][j] : (j - 4 == i ? 1.0 : 0.0);
+        for (int j = 0; j < 8; ++j) {
+            if (j < 4 && !std::isfinite(a.m[i][j])) return false;
+            w[i][j] = j < 4 ? a.m[i][j] : (j - 4 == i ? 1.0 : 0.0);
+        }
     for (int c = 0; c < 4; ++c) {
         int piv = c;
         for (int r = c + 1; r < 4; ++r)
@@ -97,10 +102,12 @@ Transform Transform::LookAt(const Vec3& eye, const Vec3& target, const Vec3& up)
     Vec3 dir = target - eye;
     if (LengthSquared(dir) == 0) throw std::invalid_argument("camera eye and target coincide");
     dir = Normalize(dir);
-    Vec3 right = Cross(Normalize(up), dir);
-    if (LengthSquared(right) == 0) throw std::invalid_argument("camera up is parallel to the view");
+    // Right-handed: looking along +z with +y up, +x is on the viewer's left.
+    Vec3 right = Cross(dir, Normalize(up));
+    if (!(LengthSquared(right) >= 1e-12f))  // also a zero-length (NaN) up
+        throw std::invalid_argument("camera up is zero or parallel to the view");
     right = Normalize(right);
-    Vec3 new_up = Cross(dir, right);
+    Vec3 new_up = Cross(right, dir);
     // Columns: camera x (right), y (up), z (forward), position.
     Mat4 m = Mat4::Identity();
     for (int i = 0; i < 3; ++i) {

@@ -30,7 +30,8 @@ class Transform {
     static Transform Scale(const Vec3& s);
     // Rotation by `degrees` about `axis` (right-handed).
     static Transform Rotate(float degrees, const Vec3& axis);
-    // Camera-to-world transform for a camera at `eye` looking at `target`.
+    // Camera-to-world transform for a camera at `eye` looking at `target`: camera space
+    // has +x to the image's right, +y up and +z forward; the world is right-handed.
     static Transform LookAt(const Vec3& eye, const Vec3& target, const Vec3& up);
 
     Transform operator*(const Transform& o) const { return {m_ * o.m_, o.inv_ * inv_}; }

@@ -1,13 +1,8 @@
 #include "plan/frame_renderer.h"
 
 #include <pmmintrin.h>
-#include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 #include <xmmintrin.h>
 
-#include <mutex>
-#include <optional>
 #include <stdexcept>
 
 #include "core/rng.h"
@@ -60,33 +55,6 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     }
     rays_ += Scene::ThreadRayCount() - rays_before;
     return film;
-}
-
-Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int threads,
-                       const ProgressCallback& progress, uint64_t* rays_traced) {
-    FrameRenderer renderer(scene, settings);
-    const auto& tiles = renderer.Tiles();
-    std::vector<std::optional<TileFilm>> results(tiles.size());
-    tbb::enumerable_thread_specific<ScratchBuffer> arenas;
-    std::mutex progress_mutex;
-    int done = 0;
-    tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1),
-                          [&](const tbb::blocked_range<size_t>& range) {
-                              for (size_t i = range.begin(); i != range.end(); ++i) {
-                                  results[i] = renderer.RenderTile(tiles[i], arenas.local());
-                                  if (progress) {
-                                      std::lock_guard lock(progress_mutex);
-                                      progress(++done, static_cast<int>(tiles.size()));
-                                  }
-                              }
-                          });
-    });
-    Film film(renderer.Resolution());
-    for (const auto& r : results) film.Merge(*r);
-    if (rays_traced) *rays_traced = renderer.RaysTraced();
-    return film.Resolve();
 }
 
 }  // namespace tessera

@@ -5,7 +5,6 @@
 // pixel, sample index), never by thread, so any runner may render any tile anywhere.
 
 #include <atomic>
-#include <functional>
 #include <memory>
 #include <vector>
 
@@ -41,14 +40,5 @@ class FrameRenderer {
     std::vector<PixelBounds> tiles_;
     mutable std::atomic<uint64_t> rays_{0};
 };
-
-// Called after each finished tile with (tiles done, tiles in all).
-using ProgressCallback = std::function<void(int, int)>;
-
-// The local runner: renders every tile of the frame on `threads` threads (0: all
-// cores) and assembles the film in tile order, so the image is the same for any
-// thread count.
-Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int threads,
-                       const ProgressCallback& progress = {}, uint64_t* rays_traced = nullptr);
 
 }  // namespace tessera

@@ -52,6 +52,8 @@ class Scene {
     // --- queries (thread-safe after Commit) ---
     // Closest hit with t in (0, t_max).
     bool Intersect(const Ray& ray, SurfaceInteraction* si, float t_max = kInfinity) const;
+    // Distance to the closest hit, without shading: Embree's own cost, for benchmarks.
+    bool IntersectRaw(const Ray& ray, float* t) const;
     // Whether anything blocks the segment from p0 to p1 (both ends excluded).
     bool Occluded(const Vec3& p0, const Vec3& p1) const;
     // Whether anything blocks the ray within (0, t_max).
@@ -64,9 +66,19 @@ class Scene {
     const LightSampler& GetLightSampler() const { return *light_sampler_; }
     const Bounds3& Bounds() const { return bounds_; }
     size_t NumTriangles() const;
+    // Rays this thread has traced through any Scene (for statistics).
+    static uint64_t ThreadRayCount();
 
   private:
+    struct Shape;
+    static void StoreShape(std::vector<std::unique_ptr<Shape>>& table, unsigned id,
+                           std::unique_ptr<Shape> shape);
+
     std::unique_ptr<EmbreeScene> embree_;
+    // Indexed by Embree geometry id: root geometries, and each prototype's own.
+    std::vector<std::unique_ptr<Shape>> root_shapes_;
+    std::vector<std::vector<std::unique_ptr<Shape>>> prototype_shapes_;
+    std::vector<Bounds3> prototype_bounds_;
     std::vector<std::unique_ptr<Material>> materials_;
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<const Light*> infinite_lights_;

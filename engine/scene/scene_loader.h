@@ -7,6 +7,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "plan/render_settings.h"
 #include "scene/scene.h"
@@ -22,5 +23,10 @@ struct LoadedScene {
 // (resolution before the camera is built). Relative paths resolve against the
 // scene file's folder.
 LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides = {});
+
+// The files a scene references (meshes, image textures), as written in the scene,
+// relative to the scene file's folder; each listed once, in order of appearance.
+// Parses the scene (throwing SceneError like LoadSceneFile) but builds nothing.
+std::vector<std::string> ListSceneFiles(const std::string& path);
 
 }  // namespace tessera

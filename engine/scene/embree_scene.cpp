@@ -1,0 +1,177 @@
+#include "scene/embree_scene.h"
+
+#include <embree3/rtcore.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+
+namespace tessera {
+namespace {
+
+void OnEmbreeError(void* /*user*/, RTCError code, const char* message) {
+    spdlog::error("Embree error {}: {}", static_cast<int>(code), message ? message : "");
+}
+
+void FillTriangles(RTCDevice device, RTCGeometry geom, const TriangleMesh& mesh) {
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), mesh.positions.size()));
+    auto* indices = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(unsigned), mesh.NumTriangles()));
+    if (!vertices || !indices) {
+        throw std::runtime_error("Embree could not allocate a mesh buffer (error " +
+                                 std::to_string(rtcGetDeviceError(device)) + ")");
+    }
+    for (size_t i = 0; i < mesh.positions.size(); ++i) {
+        vertices[3 * i + 0] = mesh.positions[i].x;
+        vertices[3 * i + 1] = mesh.positions[i].y;
+        vertices[3 * i + 2] = mesh.positions[i].z;
+    }
+    std::memcpy(indices, mesh.indices.data(), mesh.indices.size() * sizeof(unsigned));
+    rtcCommitGeometry(geom);
+}
+
+}  // namespace
+
+struct EmbreeScene::Handles {
+    RTCDevice device = nullptr;
+    RTCScene root = nullptr;
+    std::vector<RTCScene> prototypes;
+};
+
+EmbreeScene::EmbreeScene() : h_(std::make_unique<Handles>()) {
+    // TESSERA_EMBREE_CONFIG passes Embree device options, e.g. "max_isa=avx2" to run
+    // under valgrind, which does not know AVX-512.
+    const char* config = std::getenv("TESSERA_EMBREE_CONFIG");
+    h_->device = rtcNewDevice(config);
+    if (!h_->device) throw std::runtime_error("cannot create the Embree device");
+    rtcSetDeviceErrorFunction(h_->device, OnEmbreeError, nullptr);
+    h_->root = rtcNewScene(h_->device);
+    // Robust traversal: rays that graze edges between coplanar triangles never leak.
+    rtcSetSceneFlags(h_->root, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(h_->root, RTC_BUILD_QUALITY_HIGH);
+}
+
+EmbreeScene::~EmbreeScene() {
+    // Release in reverse order of creation.
+    if (h_->root) rtcReleaseScene(h_->root);
+    for (RTCScene s : h_->prototypes) rtcReleaseScene(s);
+    if (h_->device) rtcReleaseDevice(h_->device);
+}
+
+unsigned EmbreeScene::AddTriangles(const TriangleMesh& mesh) {
+    RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    FillTriangles(h_->device, geom, mesh);
+    unsigned id = rtcAttachGeometry(h_->root, geom);
+    rtcReleaseGeometry(geom);
+    return id;
+}
+
+unsigned EmbreeScene::AddSphere(const Vec3& center, float radius) {
+    RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                          RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+    if (!v) throw std::runtime_error("Embree could not allocate a sphere buffer");
+    v[0] = center.x;
+    v[1] = center.y;
+    v[2] = center.z;
+    v[3] = radius;
+    rtcCommitGeometry(geom);
+    unsigned id = rtcAttachGeometry(h_->root, geom);
+    rtcReleaseGeometry(geom);
+    return id;
+}
+
+int EmbreeScene::AddPrototype() {
+    RTCScene s = rtcNewScene(h_->device);
+    rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(s, RTC_BUILD_QUALITY_HIGH);
+    h_->prototypes.push_back(s);
+    return static_cast<int>(h_->prototypes.size()) - 1;
+}
+
+unsigned EmbreeScene::AddTrianglesToPrototype(int prototype, const TriangleMesh& mesh) {
+    RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    FillTriangles(h_->device, geom, mesh);
+    unsigned id = rtcAttachGeometry(h_->prototypes.at(prototype), geom);
+    rtcReleaseGeometry(geom);
+    return id;
+}
+
+unsigned EmbreeScene::AddInstance(int prototype, const Transform& object_to_world) {
+    RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(geom, h_->prototypes.at(prototype));
+    // Embree wants a 3x4 row-major affine matrix.
+    float m[12];
+    const auto& a = object_to_world.Matrix().m;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) m[r * 4 + c] = a[r][c];
+    rtcSetGeometryTransform(geom, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m);
+    rtcCommitGeometry(geom);
+    unsigned id = rtcAttachGeometry(h_->root, geom);
+    rtcReleaseGeometry(geom);
+    return id;
+}
+
+void EmbreeScene::Commit() {
+    for (RTCScene s : h_->prototypes) rtcCommitScene(s);
+    rtcCommitScene(h_->root);
+    RTCError err = rtcGetDeviceError(h_->device);
+    if (err != RTC_ERROR_NONE)
+        throw std::runtime_error("Embree failed to build the scene (error " +
+                                 std::to_string(static_cast<int>(err)) + ")");
+}
+
+bool EmbreeScene::Intersect(const Ray& ray, float t_max, RawHit* hit) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    rh.ray.org_x = ray.o.x;
+    rh.ray.org_y = ray.o.y;
+    rh.ray.org_z = ray.o.z;
+    rh.ray.tnear = 0;
+    rh.ray.dir_x = ray.d.x;
+    rh.ray.dir_y = ray.d.y;
+    rh.ray.dir_z = ray.d.z;
+    rh.ray.time = ray.time;
+    rh.ray.tfar = t_max;
+    rh.ray.mask = ~0u;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(h_->root, &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    hit->t = rh.ray.tfar;
+    hit->geom_id = rh.hit.geomID;
+    hit->prim_id = rh.hit.primID;
+    hit->inst_id = rh.hit.instID[0];
+    hit->u = rh.hit.u;
+    hit->v = rh.hit.v;
+    return true;
+}
+
+bool EmbreeScene::Occluded(const Ray& ray, float t_max) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay r;
+    r.org_x = ray.o.x;
+    r.org_y = ray.o.y;
+    r.org_z = ray.o.z;
+    r.tnear = 0;
+    r.dir_x = ray.d.x;
+    r.dir_y = ray.d.y;
+    r.dir_z = ray.d.z;
+    r.time = ray.time;
+    r.tfar = t_max;
+    r.mask = ~0u;
+    r.id = 0;
+    r.flags = 0;
+    rtcOccluded1(h_->root, &context, &r);
+    return r.tfar < 0;  // Embree sets tfar to -inf on a hit
+}
+
+}  // namespace tessera

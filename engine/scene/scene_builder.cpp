@@ -1,0 +1,249 @@
+#include "scene/scene_builder.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <stdexcept>
+
+#include "camera/perspective.h"
+#include "core/error.h"
+#include "light/lights.h"
+#include "material/materials.h"
+#include "scene/mesh.h"
+
+namespace tessera {
+
+namespace {
+
+// Relative tolerance on texture albedos: an image saved at exactly 1 may read back a hair
+// above it.
+constexpr float kAlbedoSlack = 1e-4f;
+
+// A shape's object-space mesh (everything but spheres); mesh files come from `files`.
+TriangleMesh ShapeMesh(const ShapeRecord& s, const std::map<std::string, TriangleMesh>& files) {
+    switch (s.kind) {
+        case ShapeKind::kRectangle:
+            return MakeRectangle(s.width, s.height);
+        case ShapeKind::kDisk:
+            return MakeDisk(s.radius, s.segments);
+        case ShapeKind::kBox:
+            return MakeBox(s.lo, s.hi);
+        case ShapeKind::kQuad:
+            return MakeQuad(s.corners[0], s.corners[1], s.corners[2], s.corners[3]);
+        case ShapeKind::kMesh:
+            return files.at(s.path);
+        case ShapeKind::kSphere:
+            break;
+    }
+    throw std::logic_error("spheres have no mesh");
+}
+
+// Loads each mesh file once, however many shapes use it.
+void LoadMeshFiles(const std::vector<ShapeRecord>& shapes,
+                   std::map<std::string, TriangleMesh>* files) {
+    for (const ShapeRecord& s : shapes) {
+        if (s.kind != ShapeKind::kMesh || files->count(s.path)) continue;
+        try {
+            (*files)[s.path] = LoadMeshFile(s.path);
+        } catch (const std::exception& e) {
+            throw SceneError(s.path_where, e.what());
+        }
+    }
+}
+
+// World-space (or, for objects, object-space) meshes of the non-sphere shapes, in order.
+std::vector<TriangleMesh> MakeMeshes(const std::vector<ShapeRecord>& shapes,
+                                     const std::map<std::string, TriangleMesh>& files) {
+    std::vector<TriangleMesh> out;
+    for (const ShapeRecord& s : shapes) {
+        if (s.kind == ShapeKind::kSphere) continue;
+        TriangleMesh m = ShapeMesh(s, files);
+        if (!s.transform.IsIdentity()) m.Transform(s.transform);
+        try {
+            m.Validate();
+        } catch (const std::exception& e) {
+            throw SceneError(s.where, e.what());
+        }
+        out.push_back(std::move(m));
+    }
+    return out;
+}
+
+std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records) {
+    std::vector<TextureRef> out;
+    for (const TextureRecord& t : records) {
+        switch (t.kind) {
+            case TextureKind::kConstant:
+                out.push_back(MakeConstantTexture(t.value));
+                break;
+            case TextureKind::kCheckerboard:
+                out.push_back(MakeCheckerboardTexture(t.a, t.b, t.scale));
+                break;
+            case TextureKind::kImage:
+                try {
+                    out.push_back(MakeImageTexture(t.path, t.srgb));
+                } catch (const std::exception& e) {
+                    throw SceneError(t.path_where, e.what());
+                }
+                break;
+        }
+    }
+    return out;
+}
+
+// A material's reflectance as a texture; one that could exceed 1 is an error here, where
+// the texture's values are known (constants were checked by the parser).
+TextureRef Reflectance(const ColorParam& p, const std::vector<TextureRef>& textures,
+                       const SceneRecords& records) {
+    if (p.texture < 0) return MakeConstantTexture(p.value);
+    const TextureRef& t = textures[p.texture];
+    float max = t->MaxValue();
+    if (max > 1 + kAlbedoSlack) {
+        char value[32];
+        std::snprintf(value, sizeof(value), "%g", max);
+        throw SceneError(p.where, "texture '" + records.textures[p.texture].name +
+                                      "' reaches albedo " + value +
+                                      ", above 1 (a reflectance above 1 creates energy)");
+    }
+    return t;
+}
+
+std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
+                                       const std::vector<TextureRef>& textures,
+                                       const SceneRecords& records) {
+    switch (m.kind) {
+        case MaterialKind::kDiffuse:
+            return MakeDiffuseMaterial(Reflectance(m.reflectance, textures, records));
+        case MaterialKind::kMirror:
+            return MakeMirrorMaterial(Reflectance(m.reflectance, textures, records));
+        case MaterialKind::kDielectric:
+            return MakeDielectricMaterial(m.eta);
+        case MaterialKind::kRoughConductor:
+            return MakeRoughConductorMaterial(m.conductor_eta, m.conductor_k, m.alpha_u, m.alpha_v);
+        case MaterialKind::kRoughDielectric:
+            return MakeRoughDielectricMaterial(m.eta, m.alpha_u);
+        case MaterialKind::kPlastic:
+            return MakePlasticMaterial(Reflectance(m.reflectance, textures, records), m.eta,
+                                       m.alpha_u);
+    }
+    throw std::logic_error("unknown material kind");
+}
+
+std::unique_ptr<Light> MakeLight(const LightRecord& l) {
+    switch (l.kind) {
+        case LightKind::kPoint:
+            return MakePointLight(l.position, l.value);
+        case LightKind::kSpot:
+            return MakeSpotLight(l.position, l.target, l.value, l.cone_angle, l.falloff_start);
+        case LightKind::kDirectional:
+            return MakeDirectionalLight(l.direction, l.value);
+        case LightKind::kEnvironment:
+            return MakeConstantEnvironmentLight(l.value);
+    }
+    throw std::logic_error("unknown light kind");
+}
+
+std::unique_ptr<Camera> MakeCamera(const CameraRecord& c, Vec2i resolution) {
+    PerspectiveSettings p;
+    p.camera_to_world = c.camera_to_world;
+    p.resolution = resolution;
+    p.fov_deg = c.fov_deg;
+    p.lens_radius = c.lens_radius;
+    p.focus_distance = c.focus_distance;
+    p.shutter_open = c.shutter_open;
+    p.shutter_close = c.shutter_close;
+    return MakePerspectiveCamera(p);
+}
+
+}  // namespace
+
+RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) {
+    auto fail = [](const std::string& what) { throw SceneError("command line", what); };
+    if (o.integrator) {
+        const auto& known = KnownIntegrators();
+        if (std::find(known.begin(), known.end(), *o.integrator) == known.end())
+            fail("unknown integrator '" + *o.integrator + "'");
+        s.integrator = *o.integrator;
+    }
+    if (o.spp) {
+        if (*o.spp <= 0) fail("spp must be positive");
+        s.spp = *o.spp;
+    }
+    if (o.max_depth) {
+        if (*o.max_depth < 0) fail("max_depth must not be negative");
+        s.max_depth = *o.max_depth;
+    }
+    if (o.tile_size) {
+        if (*o.tile_size <= 0) fail("tile_size must be positive");
+        s.tile_size = *o.tile_size;
+    }
+    if (o.frame) {
+        if (*o.frame < 0) fail("frame must not be negative");
+        s.frame = *o.frame;
+    }
+    if (o.width) {
+        if (*o.width <= 0) fail("width must be positive");
+        s.resolution.x = *o.width;
+    }
+    if (o.height) {
+        if (*o.height <= 0) fail("height must be positive");
+        s.resolution.y = *o.height;
+    }
+    if (o.seed) s.seed = *o.seed;
+    if (o.sampler) s.sampler = *o.sampler;
+    return s;
+}
+
+LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settings) {
+    // Everything that reads files or can reject a value, before the Scene exists.
+    std::map<std::string, TriangleMesh> files;
+    LoadMeshFiles(records.shapes, &files);
+    for (const ObjectRecord& o : records.objects) LoadMeshFiles(o.shapes, &files);
+    std::vector<TriangleMesh> meshes = MakeMeshes(records.shapes, files);
+    std::vector<std::vector<TriangleMesh>> object_meshes;
+    for (const ObjectRecord& o : records.objects)
+        object_meshes.push_back(MakeMeshes(o.shapes, files));
+    files.clear();
+
+    std::vector<TextureRef> textures = MakeTextures(records.textures);
+    std::vector<std::unique_ptr<Material>> materials;
+    for (const MaterialRecord& m : records.materials)
+        materials.push_back(MakeMaterial(m, textures, records));
+
+    LoadedScene out;
+    out.settings = settings;
+    out.scene = std::make_unique<Scene>();
+    Scene& scene = *out.scene;
+    std::vector<const Material*> material_of;
+    for (auto& m : materials) material_of.push_back(scene.AddMaterial(std::move(m)));
+    auto material = [&](int index) { return index < 0 ? nullptr : material_of[index]; };
+
+    size_t next_mesh = 0;
+    for (const ShapeRecord& s : records.shapes) {
+        Emission emission;
+        if (s.emission) emission = {s.emission->radiance, s.emission->two_sided};
+        const Emission* e = s.emission ? &emission : nullptr;
+        if (s.kind == ShapeKind::kSphere) {
+            scene.AddSphere(s.center, s.radius, material(s.material), e);
+        } else {
+            scene.AddMesh(std::move(meshes[next_mesh++]), material(s.material), e);
+        }
+    }
+    std::vector<int> prototype_of;
+    for (size_t i = 0; i < records.objects.size(); ++i) {
+        int proto = scene.AddPrototype();
+        prototype_of.push_back(proto);
+        const std::vector<ShapeRecord>& shapes = records.objects[i].shapes;
+        for (size_t k = 0; k < shapes.size(); ++k)
+            scene.AddMeshToPrototype(proto, std::move(object_meshes[i][k]),
+                                     material(shapes[k].material));
+    }
+    for (const InstanceRecord& inst : records.instances)
+        scene.AddInstance(prototype_of[inst.object], inst.transform);
+    for (const LightRecord& l : records.lights) scene.AddLight(MakeLight(l));
+    scene.SetCamera(MakeCamera(records.camera, settings.resolution));
+    scene.Commit();
+    return out;
+}
+
+}  // namespace tessera

@@ -1,0 +1,682 @@
+// The scene file parser: JSON (through JsonValue) to checked SceneRecords. Each section
+// has one function; each reads exactly the keys its record needs and then calls
+// Finish(), so that any other key is reported as unknown, with the JSON pointer.
+
+#include "scene/scene_records.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <stdexcept>
+
+#include "core/error.h"
+#include "scene/json_value.h"
+
+namespace tessera {
+
+const std::vector<std::string>& KnownIntegrators() {
+    static const std::vector<std::string> kNames = {"path", "direct"};
+    return kNames;
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------------------------------
+// Values
+
+std::string Number(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%g", v);
+    return buf;
+}
+
+float Positive(const JsonValue& v) {
+    float x = v.AsFloat();
+    if (!(x > 0)) v.Fail("must be positive, got " + Number(x));
+    return x;
+}
+
+float NonNegative(const JsonValue& v) {
+    float x = v.AsFloat();
+    if (x < 0) v.Fail("must not be negative, got " + Number(x));
+    return x;
+}
+
+float InRange(const JsonValue& v, float lo, float hi, bool lo_open, bool hi_open) {
+    float x = v.AsFloat();
+    bool ok = (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+    if (!ok) {
+        v.Fail("must be in " + std::string(lo_open ? "(" : "[") + Number(lo) + ", " + Number(hi) +
+               (hi_open ? ")" : "]") + ", got " + Number(x));
+    }
+    return x;
+}
+
+Rgb NonNegativeRgb(const JsonValue& v) {
+    Rgb c = v.AsRgb();
+    if (c.r < 0 || c.g < 0 || c.b < 0) v.Fail("colour components must not be negative");
+    return c;
+}
+
+Vec3 NonZeroVec3(const JsonValue& v) {
+    Vec3 d = v.AsVec3();
+    if (LengthSquared(d) == 0) v.Fail("must not be the zero vector");
+    return d;
+}
+
+// The index of v's string among `names`; `what` ("shape type") names the list.
+int ParseEnum(const JsonValue& v, const std::vector<std::string>& names, const std::string& what) {
+    std::string s = v.AsString();
+    for (size_t i = 0; i < names.size(); ++i)
+        if (names[i] == s) return int(i);
+    std::string near = ClosestMatch(s, names);
+    v.Fail("unknown " + what + " '" + s + "'" +
+           (near.empty() ? "" : " (did you mean '" + near + "'?)") + "; expected " +
+           JoinAlternatives(names));
+}
+
+// The index of the record named v's string, from a name-to-index map.
+int ParseReference(const JsonValue& v, const std::map<std::string, int>& names,
+                   const std::string& what) {
+    std::string s = v.AsString();
+    auto it = names.find(s);
+    if (it != names.end()) return it->second;
+    std::vector<std::string> known;
+    for (const auto& [name, index] : names) known.push_back(name);
+    std::string near = ClosestMatch(s, known);
+    if (!near.empty()) v.Fail("unknown " + what + " '" + s + "' (did you mean '" + near + "'?)");
+    v.Fail("unknown " + what + " '" + s + "'" +
+           (known.empty() ? " (none is defined)" : "; defined: " + JoinAlternatives(known)));
+}
+
+// ---------------------------------------------------------------------------------------
+// Context shared by the section parsers
+
+struct Context {
+    fs::path base_dir;
+    std::map<std::string, int> textures, materials, objects;
+    // Files referenced so far, as (section, as written, resolved).
+    struct FileRef {
+        std::string section, written, resolved;
+    };
+    mutable std::vector<FileRef> files;
+    std::string section;  // the top-level key being parsed
+
+    // A file the scene refers to, resolved against the scene's folder; must be readable.
+    std::string ResolveFile(const JsonValue& v, const std::string& what) const {
+        std::string given = v.AsString();
+        if (given.empty()) v.Fail("empty file name");
+        fs::path p(given);
+        if (p.is_relative()) p = base_dir / p;
+        p = p.lexically_normal();
+        std::string resolved = p.string();
+        std::string shown = given == resolved ? "'" + given + "'"
+                                              : "'" + given + "' (resolved to '" + resolved + "')";
+        std::error_code ec;
+        if (!fs::exists(p, ec)) v.Fail(what + " " + shown + " does not exist");
+        if (fs::is_directory(p, ec)) v.Fail(what + " " + shown + " is a directory");
+        std::ifstream probe(p, std::ios::binary);
+        if (!probe) v.Fail("cannot read " + what + " " + shown);
+        files.push_back({section, given, resolved});
+        return resolved;
+    }
+};
+
+// ---------------------------------------------------------------------------------------
+// render
+
+FilterSettings ParseFilter(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    FilterSettings f;
+    static const std::vector<std::string> kTypes = {"box", "gaussian", "mitchell"};
+    int type = ParseEnum(o.Required("type"), kTypes, "filter type");
+    f.type =
+        type == 0 ? FilterType::kBox : (type == 1 ? FilterType::kGaussian : FilterType::kMitchell);
+    if (auto r = o.Get("radius")) f.radius = Positive(*r);
+    if (f.type == FilterType::kGaussian) {
+        if (auto s = o.Get("sigma")) f.gaussian_sigma = Positive(*s);
+    }
+    if (f.type == FilterType::kMitchell) {
+        if (auto b = o.Get("b")) f.mitchell_b = b->AsFloat();
+        if (auto c = o.Get("c")) f.mitchell_c = c->AsFloat();
+    }
+    o.Finish("a " + kTypes[type] + " filter");
+    return f;
+}
+
+RenderSettings ParseRender(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    RenderSettings r;
+    if (auto w = o.Get("width")) r.resolution.x = int(w->AsInt(1, 65536));
+    if (auto h = o.Get("height")) r.resolution.y = int(h->AsInt(1, 65536));
+    if (auto s = o.Get("spp")) r.spp = int(s->AsInt(1, 1 << 24));
+    if (auto i = o.Get("integrator"))
+        r.integrator = KnownIntegrators()[ParseEnum(*i, KnownIntegrators(), "integrator")];
+    if (auto d = o.Get("max_depth")) r.max_depth = int(d->AsInt(0, 100000));
+    if (auto d = o.Get("rr_depth")) r.rr_depth = int(d->AsInt(0, 100000));
+    if (auto s = o.Get("sampler")) {
+        int t = ParseEnum(*s, {"stratified", "independent"}, "sampler");
+        r.sampler = t == 0 ? SamplerType::kStratified : SamplerType::kIndependent;
+    }
+    if (auto s = o.Get("seed")) r.seed = s->AsUint64();
+    if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
+    if (auto f = o.Get("frame")) r.frame = int(f->AsInt(0, 1 << 30));
+    if (auto f = o.Get("filter")) r.filter = ParseFilter(*f);
+    o.Finish("the render block");
+    return r;
+}
+
+// ---------------------------------------------------------------------------------------
+// transforms
+
+Transform ParseLookAt(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    Vec3 eye = o.Required("eye").AsVec3();
+    Vec3 target = o.Required("target").AsVec3();
+    Vec3 up(0, 1, 0);
+    if (auto u = o.Get("up")) up = NonZeroVec3(*u);
+    o.Finish("look_at");
+    try {
+        return Transform::LookAt(eye, target, up);
+    } catch (const std::invalid_argument& e) {
+        v.Fail(e.what());
+    }
+}
+
+Transform ParseMatrix(const JsonValue& v) {
+    std::vector<float> a = v.AsFloats(16);
+    Mat4 m;
+    for (int i = 0; i < 16; ++i) m.m[i / 4][i % 4] = a[i];
+    if (m.m[3][0] != 0 || m.m[3][1] != 0 || m.m[3][2] != 0 || m.m[3][3] != 1)
+        v.Fail("the last row of a matrix must be 0 0 0 1 (affine transforms only)");
+    Mat4 inv;
+    if (!Inverse(m, &inv)) v.Fail("matrix is singular");
+    return Transform(m, inv);
+}
+
+// One step: an object with translate, rotate and/or scale (applied as scale, then rotate,
+// then translate), or with matrix or look_at alone.
+Transform ParseTransformStep(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    auto matrix = o.Get("matrix"), look_at = o.Get("look_at");
+    auto translate = o.Get("translate"), rotate = o.Get("rotate"), scale = o.Get("scale");
+    o.Finish("a transform");
+    int count = int(bool(matrix)) + bool(look_at) + bool(translate) + bool(rotate) + bool(scale);
+    if (count == 0) v.Fail("empty transform: expected translate, rotate, scale, matrix or look_at");
+    if ((matrix || look_at) && count > 1) {
+        v.Fail("'" + std::string(matrix ? "matrix" : "look_at") +
+               "' cannot be combined with other operations in one object; list the steps");
+    }
+    if (matrix) return ParseMatrix(*matrix);
+    if (look_at) return ParseLookAt(*look_at);
+    Transform xf;
+    if (scale) {
+        Vec3 s = scale->IsNumber() ? Vec3(scale->AsFloat(), scale->AsFloat(), scale->AsFloat())
+                                   : scale->AsVec3();
+        if (s.x == 0 || s.y == 0 || s.z == 0) scale->Fail("scale factors must not be zero");
+        xf = Transform::Scale(s);
+    }
+    if (rotate) {
+        JsonObject r = rotate->AsObject();
+        Vec3 axis = NonZeroVec3(r.Required("axis"));
+        float angle = r.Required("angle").AsFloat();
+        r.Finish("rotate");
+        xf = Transform::Rotate(angle, axis) * xf;
+    }
+    if (translate) xf = Transform::Translate(translate->AsVec3()) * xf;
+    return xf;
+}
+
+// An object (one step) or a list of steps, the first applied first.
+Transform ParseTransform(const JsonValue& v) {
+    if (v.IsObject()) return ParseTransformStep(v);
+    if (!v.IsArray())
+        v.Fail("expected a transform (an object or a list of objects), got " + v.KindName());
+    Transform xf;
+    for (const JsonValue& step : v.Elements()) xf = ParseTransformStep(step) * xf;
+    return xf;
+}
+
+// ---------------------------------------------------------------------------------------
+// camera
+
+CameraRecord ParseCamera(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    CameraRecord c;
+    c.where = v.Where();
+    if (auto t = o.Get("type")) ParseEnum(*t, {"perspective"}, "camera type");
+    JsonValue eye_v = o.Required("eye");
+    Vec3 eye = eye_v.AsVec3();
+    JsonValue target_v = o.Required("target");
+    Vec3 target = target_v.AsVec3();
+    if (eye == target) target_v.Fail("target must differ from eye");
+    Vec3 up(0, 1, 0);
+    auto up_v = o.Get("up");
+    if (up_v) up = NonZeroVec3(*up_v);
+    if (LengthSquared(Cross(Normalize(target - eye), Normalize(up))) < 1e-10f)
+        (up_v ? *up_v : v).Fail("up is parallel to the view direction");
+    c.camera_to_world = Transform::LookAt(eye, target, up);
+    if (auto f = o.Get("fov")) c.fov_deg = InRange(*f, 0, 180, true, true);
+    auto lens = o.Get("lens_radius"), aperture = o.Get("aperture");
+    if (lens && aperture) aperture->Fail("give either lens_radius or aperture, not both");
+    if (lens) c.lens_radius = NonNegative(*lens);
+    if (aperture) c.lens_radius = NonNegative(*aperture) / 2;
+    c.focus_distance = Distance(eye, target);
+    if (auto f = o.Get("focus_distance")) c.focus_distance = Positive(*f);
+    if (auto s = o.Get("shutter")) {
+        std::vector<float> t = s->AsFloats(2);
+        if (t[1] < t[0]) s->Fail("shutter closes before it opens");
+        c.shutter_open = t[0];
+        c.shutter_close = t[1];
+    }
+    o.Finish("a perspective camera");
+    return c;
+}
+
+// ---------------------------------------------------------------------------------------
+// textures and materials
+
+const std::vector<std::string> kTextureTypes = {"constant", "checkerboard", "image"};
+
+TextureRecord ParseTexture(const std::string& name, const JsonValue& v, const Context& ctx) {
+    JsonObject o = v.AsObject();
+    TextureRecord t;
+    t.name = name;
+    t.where = v.Where();
+    int type = ParseEnum(o.Required("type"), kTextureTypes, "texture type");
+    t.kind = TextureKind(type);
+    switch (t.kind) {
+        case TextureKind::kConstant:
+            t.value = NonNegativeRgb(o.Required("value"));
+            break;
+        case TextureKind::kCheckerboard: {
+            t.a = NonNegativeRgb(o.Required("a"));
+            t.b = NonNegativeRgb(o.Required("b"));
+            if (auto s = o.Get("scale")) {
+                t.scale = s->AsVec2();
+                if (!(t.scale.x > 0 && t.scale.y > 0)) s->Fail("scale must be positive");
+            }
+            break;
+        }
+        case TextureKind::kImage: {
+            JsonValue file = o.Required("file");
+            t.path = ctx.ResolveFile(file, "image file");
+            t.path_where = file.Where();
+            // 8-bit formats are almost always sRGB-encoded; float formats are linear.
+            std::string ext = fs::path(t.path).extension().string();
+            for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+            t.srgb = ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" ||
+                     ext == ".tga" || ext == ".gif";
+            if (auto s = o.Get("srgb")) t.srgb = s->AsBool();
+            break;
+        }
+    }
+    o.Finish("a " + kTextureTypes[type] + " texture");
+    return t;
+}
+
+// A reflectance: an RGB array, a number, or a texture name. `bounded` reflectances
+// (albedos) must not exceed 1, or the surface would create energy.
+ColorParam ParseReflectance(const JsonValue& v, const Context& ctx, bool bounded) {
+    ColorParam p;
+    p.where = v.Where();
+    if (v.IsString()) {
+        p.texture = ParseReference(v, ctx.textures, "texture");
+        return p;
+    }
+    if (!v.IsNumber() && !v.IsArray())
+        v.Fail("expected an RGB colour, a number or a texture name, got " + v.KindName());
+    p.value = NonNegativeRgb(v);
+    if (bounded && p.value.MaxComponent() > 1) {
+        v.Fail("albedo " + Number(p.value.MaxComponent()) +
+               " exceeds 1 (a reflectance above 1 creates energy)");
+    }
+    return p;
+}
+
+struct Metal {
+    const char* name;
+    Rgb eta, k;
+};
+
+// RGB fits of measured complex indices of refraction (as tabulated by Mitsuba and
+// Tungsten from the same spectral data).
+const Metal kMetals[] = {
+    {"Ag", {0.155265f, 0.116723f, 0.138381f}, {4.828343f, 3.122246f, 2.146950f}},
+    {"Al", {1.657460f, 0.880369f, 0.521229f}, {9.223869f, 6.269523f, 4.837001f}},
+    {"Au", {0.143119f, 0.374957f, 1.442479f}, {3.983160f, 2.385721f, 1.603215f}},
+    {"Cr", {4.369683f, 2.916702f, 1.654701f}, {5.206434f, 4.231365f, 3.754947f}},
+    {"Cu", {0.200438f, 0.924033f, 1.102212f}, {3.912949f, 2.452848f, 2.142188f}},
+};
+
+// GGX alpha from "alpha", or from "alpha_u" and "alpha_v" together.
+void ParseAlpha(JsonObject& o, MaterialRecord* m, float default_alpha, bool allow_zero,
+                bool anisotropic) {
+    auto read = [&](const JsonValue& v) { return InRange(v, 0, 1, !allow_zero, false); };
+    auto alpha = o.Get("alpha");
+    std::optional<JsonValue> au, av;
+    if (anisotropic) {
+        au = o.Get("alpha_u");
+        av = o.Get("alpha_v");
+    }
+    if (alpha && (au || av)) (au ? *au : *av).Fail("give either alpha or alpha_u and alpha_v");
+    if (bool(au) != bool(av))
+        o.Fail(std::string("give both alpha_u and alpha_v (only ") + (au ? "alpha_u" : "alpha_v") +
+               " is given)");
+    m->alpha_u = m->alpha_v = alpha ? read(*alpha) : default_alpha;
+    if (au) {
+        m->alpha_u = read(*au);
+        m->alpha_v = read(*av);
+    }
+}
+
+const std::vector<std::string> kMaterialTypes = {"diffuse",        "mirror",          "dielectric",
+                                                 "roughconductor", "roughdielectric", "plastic"};
+
+float ParseEta(JsonObject& o) {
+    auto e = o.Get("eta");
+    if (!e) return 1.5f;
+    float eta = Positive(*e);
+    if (eta == 1) e->Fail("eta 1 makes an invisible interface");
+    return eta;
+}
+
+MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const Context& ctx) {
+    JsonObject o = v.AsObject();
+    MaterialRecord m;
+    m.name = name;
+    m.where = v.Where();
+    int type = ParseEnum(o.Required("type"), kMaterialTypes, "material type");
+    m.kind = MaterialKind(type);
+    auto reflectance = [&](float def) {
+        if (auto r = o.Get("reflectance")) return ParseReflectance(*r, ctx, true);
+        ColorParam p;
+        p.where = v.Where();
+        p.value = Rgb(def);
+        return p;
+    };
+    switch (m.kind) {
+        case MaterialKind::kDiffuse:
+            m.reflectance = reflectance(0.5f);
+            break;
+        case MaterialKind::kMirror:
+            m.reflectance = reflectance(1.0f);
+            break;
+        case MaterialKind::kDielectric:
+            m.eta = ParseEta(o);
+            break;
+        case MaterialKind::kRoughConductor: {
+            auto metal = o.Get("metal"), eta = o.Get("eta"), k = o.Get("k");
+            if (metal && (eta || k)) (eta ? *eta : *k).Fail("give either metal or eta and k");
+            if (metal) {
+                std::vector<std::string> names;
+                for (const Metal& mt : kMetals) names.push_back(mt.name);
+                const Metal& mt = kMetals[ParseEnum(*metal, names, "metal")];
+                m.conductor_eta = mt.eta;
+                m.conductor_k = mt.k;
+            } else if (eta && k) {
+                m.conductor_eta = NonNegativeRgb(*eta);
+                m.conductor_k = NonNegativeRgb(*k);
+            } else {
+                o.Fail("a roughconductor needs 'metal', or both 'eta' and 'k'");
+            }
+            ParseAlpha(o, &m, 0.1f, false, true);
+            break;
+        }
+        case MaterialKind::kRoughDielectric:
+            m.eta = ParseEta(o);
+            ParseAlpha(o, &m, 0.1f, false, false);
+            break;
+        case MaterialKind::kPlastic:
+            m.reflectance = reflectance(0.5f);
+            m.eta = ParseEta(o);
+            ParseAlpha(o, &m, 0.0f, true, false);
+            break;
+    }
+    o.Finish("a " + kMaterialTypes[type] + " material");
+    return m;
+}
+
+// ---------------------------------------------------------------------------------------
+// shapes, objects, instances
+
+const std::vector<std::string> kShapeTypes = {"sphere", "rectangle", "disk", "box", "quad", "mesh"};
+
+std::optional<EmissionRecord> ParseEmission(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    EmissionRecord e;
+    e.radiance = NonNegativeRgb(o.Required("radiance"));
+    if (auto t = o.Get("two_sided")) e.two_sided = t->AsBool();
+    o.Finish("emission");
+    if (e.radiance.IsBlack()) return std::nullopt;  // glows with nothing: not a light
+    return e;
+}
+
+// `in_object`: a shape of an instanced object, which can neither emit nor be a sphere
+// (prototypes hold meshes only).
+ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
+    JsonObject o = v.AsObject();
+    ShapeRecord s;
+    s.where = v.Where();
+    JsonValue type_v = o.Required("type");
+    int type = ParseEnum(type_v, kShapeTypes, "shape type");
+    if (auto n = o.Get("name")) s.name = n->AsString();
+    s.kind = ShapeKind(type);
+    if (in_object && s.kind == ShapeKind::kSphere)
+        type_v.Fail("spheres cannot be part of an instanced object (objects hold meshes only)");
+
+    switch (s.kind) {
+        case ShapeKind::kSphere:
+            if (auto c = o.Get("center")) s.center = c->AsVec3();
+            if (auto r = o.Get("radius")) s.radius = Positive(*r);
+            if (o.Has("transform"))
+                o.Required("transform")
+                    .Fail("a sphere takes 'center' and 'radius', not a transform");
+            break;
+        case ShapeKind::kRectangle:
+            if (auto w = o.Get("width")) s.width = Positive(*w);
+            if (auto h = o.Get("height")) s.height = Positive(*h);
+            break;
+        case ShapeKind::kDisk:
+            if (auto r = o.Get("radius")) s.radius = Positive(*r);
+            if (auto n = o.Get("segments")) s.segments = int(n->AsInt(3, 1 << 20));
+            break;
+        case ShapeKind::kBox: {
+            if (auto lo = o.Get("min")) s.lo = lo->AsVec3();
+            auto hi = o.Get("max");
+            if (hi) s.hi = hi->AsVec3();
+            if (!(s.lo.x < s.hi.x && s.lo.y < s.hi.y && s.lo.z < s.hi.z))
+                (hi ? *hi : v).Fail("box max must exceed min on every axis");
+            break;
+        }
+        case ShapeKind::kQuad: {
+            JsonValue verts = o.Required("vertices");
+            if (!verts.IsArray() || verts.Size() != 4)
+                verts.Fail("expected an array of 4 points, got " +
+                           (verts.IsArray() ? std::to_string(verts.Size()) + " points"
+                                            : verts.KindName()));
+            std::vector<JsonValue> pts = verts.Elements();
+            for (int i = 0; i < 4; ++i) s.corners[i] = pts[i].AsVec3();
+            const auto& c = s.corners;
+            Vec3 n = Cross(c[1] - c[0], c[2] - c[0]) + Cross(c[2] - c[0], c[3] - c[0]);
+            if (LengthSquared(n) == 0) verts.Fail("quad is degenerate (zero area)");
+            break;
+        }
+        case ShapeKind::kMesh: {
+            JsonValue file = o.Required("file");
+            s.path = ctx.ResolveFile(file, "mesh file");
+            s.path_where = file.Where();
+            std::string ext = fs::path(s.path).extension().string();
+            for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+            if (ext != ".obj" && ext != ".ply")
+                file.Fail("unsupported mesh format '" + ext + "' (expected .obj or .ply)");
+            break;
+        }
+    }
+    if (s.kind != ShapeKind::kSphere) {
+        if (auto t = o.Get("transform")) s.transform = ParseTransform(*t);
+    }
+
+    if (in_object && o.Has("emission"))
+        o.Required("emission").Fail("shapes of instanced objects cannot emit light");
+    std::optional<JsonValue> emission = in_object ? std::nullopt : o.Get("emission");
+    if (emission) s.emission = ParseEmission(*emission);
+    // An emitter may have no material: it then only glows and reflects nothing.
+    std::optional<JsonValue> material = emission ? o.Get("material") : o.Required("material");
+    if (material) s.material = ParseReference(*material, ctx.materials, "material");
+    o.Finish("a " + kShapeTypes[type]);
+    return s;
+}
+
+std::vector<ShapeRecord> ParseShapeList(const JsonValue& v, const Context& ctx, bool in_object) {
+    std::vector<ShapeRecord> out;
+    for (const JsonValue& s : v.Elements()) out.push_back(ParseShape(s, ctx, in_object));
+    return out;
+}
+
+ObjectRecord ParseObject(const std::string& name, const JsonValue& v, const Context& ctx) {
+    JsonObject o = v.AsObject();
+    ObjectRecord r;
+    r.name = name;
+    r.where = v.Where();
+    JsonValue shapes = o.Required("shapes");
+    r.shapes = ParseShapeList(shapes, ctx, true);
+    if (r.shapes.empty()) shapes.Fail("an object needs at least one shape");
+    o.Finish("an object");
+    return r;
+}
+
+InstanceRecord ParseInstance(const JsonValue& v, const Context& ctx) {
+    JsonObject o = v.AsObject();
+    InstanceRecord r;
+    r.where = v.Where();
+    r.object = ParseReference(o.Required("object"), ctx.objects, "object");
+    if (auto t = o.Get("transform")) r.transform = ParseTransform(*t);
+    o.Finish("an instance");
+    return r;
+}
+
+// ---------------------------------------------------------------------------------------
+// lights
+
+const std::vector<std::string> kLightTypes = {"point", "spot", "directional", "environment"};
+
+LightRecord ParseLight(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    LightRecord l;
+    l.where = v.Where();
+    int type = ParseEnum(o.Required("type"), kLightTypes, "light type");
+    l.kind = LightKind(type);
+    switch (l.kind) {
+        case LightKind::kPoint:
+            l.position = o.Required("position").AsVec3();
+            l.value = NonNegativeRgb(o.Required("intensity"));
+            break;
+        case LightKind::kSpot: {
+            l.position = o.Required("position").AsVec3();
+            JsonValue target = o.Required("target");
+            l.target = target.AsVec3();
+            if (l.target == l.position) target.Fail("target must differ from position");
+            l.value = NonNegativeRgb(o.Required("intensity"));
+            if (auto c = o.Get("cone_angle")) l.cone_angle = InRange(*c, 0, 180, true, false);
+            l.falloff_start = std::max(0.0f, l.cone_angle - 5);
+            if (auto f = o.Get("falloff_start")) {
+                l.falloff_start = NonNegative(*f);
+                if (l.falloff_start > l.cone_angle)
+                    f->Fail("falloff_start must not exceed cone_angle (" + Number(l.cone_angle) +
+                            ")");
+            }
+            break;
+        }
+        case LightKind::kDirectional:
+            l.direction = Normalize(NonZeroVec3(o.Required("direction")));
+            l.value = NonNegativeRgb(o.Required("irradiance"));
+            break;
+        case LightKind::kEnvironment:
+            l.value = NonNegativeRgb(o.Required("radiance"));
+            break;
+    }
+    o.Finish("a " + kLightTypes[type] + " light");
+    return l;
+}
+
+// ---------------------------------------------------------------------------------------
+// the document
+
+SceneRecords ParseDocument(const JsonDocument& doc, const std::string& path) {
+    JsonValue root_v = doc.Root();
+    JsonObject root = root_v.AsObject();
+    SceneRecords rec;
+    rec.file = path;
+    Context ctx;
+    ctx.base_dir = fs::path(path).parent_path();
+
+    auto render = root.Get("render");
+    JsonValue camera = root.Required("camera");
+    auto textures = root.Get("textures"), materials = root.Get("materials");
+    auto shapes = root.Get("shapes"), objects = root.Get("objects");
+    auto instances = root.Get("instances"), lights = root.Get("lights");
+    // Unknown top-level keys first: a misspelt section would otherwise pass as empty.
+    root.Finish("a scene");
+
+    if (render) rec.render = ParseRender(*render);
+    rec.camera = ParseCamera(camera);
+    if (textures) {
+        ctx.section = "textures";
+        for (auto& [name, value] : textures->AsObject().Entries()) {
+            ctx.textures[name] = int(rec.textures.size());
+            rec.textures.push_back(ParseTexture(name, value, ctx));
+        }
+    }
+    if (materials) {
+        for (auto& [name, value] : materials->AsObject().Entries()) {
+            ctx.materials[name] = int(rec.materials.size());
+            rec.materials.push_back(ParseMaterial(name, value, ctx));
+        }
+    }
+    ctx.section = "shapes";
+    if (shapes) rec.shapes = ParseShapeList(*shapes, ctx, false);
+    if (objects) {
+        ctx.section = "objects";
+        for (auto& [name, value] : objects->AsObject().Entries()) {
+            ctx.objects[name] = int(rec.objects.size());
+            rec.objects.push_back(ParseObject(name, value, ctx));
+        }
+    }
+    if (instances) {
+        for (const JsonValue& i : instances->Elements())
+            rec.instances.push_back(ParseInstance(i, ctx));
+    }
+    if (lights) {
+        for (const JsonValue& l : lights->Elements()) rec.lights.push_back(ParseLight(l));
+    }
+
+    // Sections were parsed in dependency order; list their files in the file's order.
+    std::vector<std::string> seen;
+    for (const std::string& section : root.Keys()) {
+        for (const Context::FileRef& f : ctx.files) {
+            if (f.section != section) continue;
+            if (std::find(seen.begin(), seen.end(), f.resolved) != seen.end()) continue;
+            seen.push_back(f.resolved);
+            rec.referenced_files.push_back(f.written);
+        }
+    }
+    return rec;
+}
+
+}  // namespace
+
+SceneRecords ParseSceneFile(const std::string& path) {
+    return ParseDocument(JsonDocument::Load(path), path);
+}
+
+SceneRecords ParseSceneText(const std::string& text, const std::string& path) {
+    return ParseDocument(JsonDocument::Parse(text, path), path);
+}
+
+}  // namespace tessera

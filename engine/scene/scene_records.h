@@ -1,0 +1,139 @@
+#pragma once
+
+// The scene file as plain records: what the parser produces and the builder consumes.
+// Every value here is already checked (types, ranges, names resolved to indices, files
+// found), and every record keeps `where`, "<file>: <JSON pointer>", so that the builder
+// can still name the place of the few problems only it can see (a mesh or image that
+// fails to load). Nothing here owns renderer objects.
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/color.h"
+#include "core/math.h"
+#include "core/transform.h"
+#include "plan/render_settings.h"
+
+namespace tessera {
+
+// A reflectance: a constant colour or a reference to a named texture.
+struct ColorParam {
+    std::string where;
+    Rgb value;
+    int texture = -1;  // index into SceneRecords::textures; -1 means `value`
+};
+
+enum class TextureKind { kConstant, kCheckerboard, kImage };
+
+struct TextureRecord {
+    std::string name, where;
+    TextureKind kind = TextureKind::kConstant;
+    Rgb value;               // constant
+    Rgb a, b;                // checkerboard
+    Vec2 scale{8, 8};        // checkerboard: checks per unit of uv
+    std::string path;        // image: resolved against the scene file's folder
+    std::string path_where;  // image: where "file" was given
+    bool srgb = false;       // image
+};
+
+enum class MaterialKind {
+    kDiffuse,
+    kMirror,
+    kDielectric,
+    kRoughConductor,
+    kRoughDielectric,
+    kPlastic
+};
+
+struct MaterialRecord {
+    std::string name, where;
+    MaterialKind kind = MaterialKind::kDiffuse;
+    ColorParam reflectance;          // diffuse, mirror, plastic (the diffuse base)
+    float eta = 1.5f;                // dielectric, roughdielectric, plastic
+    Rgb conductor_eta, conductor_k;  // roughconductor
+    float alpha_u = 0, alpha_v = 0;  // GGX roughness (roughdielectric and plastic: alpha_u)
+};
+
+struct EmissionRecord {
+    Rgb radiance;
+    bool two_sided = false;
+};
+
+enum class ShapeKind { kSphere, kRectangle, kDisk, kBox, kQuad, kMesh };
+
+struct ShapeRecord {
+    std::string where;
+    std::string name;  // optional label, for people reading the file
+    ShapeKind kind = ShapeKind::kSphere;
+    Vec3 center;                                         // sphere
+    float radius = 1;                                    // sphere, disk
+    float width = 1, height = 1;                         // rectangle
+    int segments = 64;                                   // disk
+    Vec3 lo{-0.5f, -0.5f, -0.5f}, hi{0.5f, 0.5f, 0.5f};  // box
+    std::array<Vec3, 4> corners;                         // quad
+    std::string path;        // mesh: resolved against the scene file's folder
+    std::string path_where;  // mesh: where "file" was given
+    Transform transform;     // object to world (all but spheres)
+    int material = -1;       // index into SceneRecords::materials; -1: none
+    std::optional<EmissionRecord> emission;
+};
+
+// A set of shapes placed by instances (Scene::AddPrototype). Never emits.
+struct ObjectRecord {
+    std::string name, where;
+    std::vector<ShapeRecord> shapes;
+};
+
+struct InstanceRecord {
+    std::string where;
+    int object = -1;  // index into SceneRecords::objects
+    Transform transform;
+};
+
+enum class LightKind { kPoint, kSpot, kDirectional, kEnvironment };
+
+struct LightRecord {
+    std::string where;
+    LightKind kind = LightKind::kPoint;
+    Vec3 position, target, direction;
+    Rgb value;  // point, spot: intensity; directional: irradiance; environment: radiance
+    float cone_angle = 30, falloff_start = 25;  // spot, degrees from the axis
+};
+
+struct CameraRecord {
+    std::string where;
+    Transform camera_to_world;
+    float fov_deg = 40;
+    float lens_radius = 0;
+    float focus_distance = 1;
+    float shutter_open = 0, shutter_close = 0;
+};
+
+struct SceneRecords {
+    std::string file;
+    // The files the scene references (meshes, images) as written in it, each once (the
+    // first spelling of each resolved path), in order of appearance in the file.
+    std::vector<std::string> referenced_files;
+    RenderSettings render;
+    CameraRecord camera;
+    std::vector<TextureRecord> textures;
+    std::vector<MaterialRecord> materials;
+    std::vector<ShapeRecord> shapes;
+    std::vector<ObjectRecord> objects;
+    std::vector<InstanceRecord> instances;
+    std::vector<LightRecord> lights;
+};
+
+// Reads and checks a scene file. Throws SceneError naming the file and JSON pointer of
+// the first problem (or "<file>:<line>:<col>" for a JSON syntax error).
+SceneRecords ParseSceneFile(const std::string& path);
+// Parses scene text as if read from `path` (relative file references resolve against
+// path's folder).
+SceneRecords ParseSceneText(const std::string& text, const std::string& path);
+
+// The integrator names the "render" block and overrides accept.
+const std::vector<std::string>& KnownIntegrators();
+
+}  // namespace tessera
