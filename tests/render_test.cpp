@@ -11,7 +11,7 @@
 #include "camera/perspective.h"
 #include "light/lights.h"
 #include "material/materials.h"
-#include "plan/frame_renderer.h"
+#include "plan/local_runner.h"
 #include "scene/scene.h"
 
 namespace tessera {
