@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Farm benchmarks: (1) the same Cornell box job rendered locally with 2 threads and by
+# the farm on 2 workers x 1 thread; (2) coordinator throughput with trivial tasks and 8
+# concurrent workers, and coordinator memory with ~100,000 queued tasks.
+# Usage: bench/run_farm.sh [build-dir]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-$root/build}
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j"$(nproc)" --target tessera tessera-coordinator tessera-worker bench_coordinator
+cli=$build/cli/tessera
+work=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$work"' EXIT
+
+opts=(--spp 16 --width 256 --height 256)
+scene=$root/scenes/cornell-box/scene.json
+t0=$(date +%s.%N)
+"$cli" render "$scene" -o "$work/local.exr" --threads 2 -q "${opts[@]}"
+t1=$(date +%s.%N)
+"$cli" farm "$scene" --workers 2 --threads-per-worker 1 -o "$work/farm" "${opts[@]}" >/dev/null 2>&1
+t2=$(date +%s.%N)
+awk -v a="$t0" -v b="$t1" -v c="$t2" 'BEGIN {
+    printf "farm overhead: local (2 threads) %.2f s, farm (2 workers x 1 thread) %.2f s, ratio %.3f\n",
+        b - a, c - b, (c - b) / (b - a) }'
+
+"$build/coordinator/tessera-coordinator" --listen 127.0.0.1:0 --port-file "$work/port" \
+    --state "$work/state" --output "$work/out" --log-level warn --max-tasks 200000 &
+coord=$!
+for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
+addr=127.0.0.1:$(cat "$work/port")
+"$cli" submit "$root/scenes/furnace/scene.json" --coordinator "$addr" \
+    --width 316 --height 316 --tile-size 1 --spp 1 >/dev/null
+rss=$(awk '/VmRSS/ {print $2}' /proc/$coord/status)
+awk -v r="$rss" 'BEGIN { printf "coordinator memory with 99856 queued tasks: %.1f MiB resident\n", r / 1024 }'
+"$build/bench/bench_coordinator" --coordinator "$addr" --workers 8 --seconds 20
+hwm=$(awk '/VmHWM/ {print $2}' /proc/$coord/status)
+awk -v r="$hwm" 'BEGIN { printf "coordinator peak memory: %.1f MiB\n", r / 1024 }'

@@ -1,0 +1,73 @@
+#pragma once
+
+// The CLI's side of the farm API: one connection to a coordinator, and the calls the
+// `submit`, `status`, `watch`, `cancel`, `fetch` and `farm` commands make through it.
+// Every failed call throws FarmError, whose text starts with the gRPC status code name
+// ("NOT_FOUND: no job 'x'") so that a user and a script can both tell what happened.
+
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bundle.h"
+#include "tessera/v1/tessera.grpc.pb.h"
+
+namespace tessera {
+
+class FarmError : public std::runtime_error {
+  public:
+    FarmError(const std::string& what, grpc::StatusCode code)
+        : std::runtime_error(what), code_(code) {}
+    grpc::StatusCode Code() const { return code_; }
+
+  private:
+    grpc::StatusCode code_;
+};
+
+// "RUNNING", "DONE", ... (the enum name without its prefix).
+std::string JobStateName(v1::JobState state);
+std::string FrameStateName(v1::FrameState state);
+bool IsFinished(v1::JobState state);
+int FramesDone(const v1::JobStatus& job);
+
+// What `Follow` may be asked to do besides showing progress.
+struct FollowOptions {
+    // Polled a few times a second; a non-empty answer stops following with that text
+    // as a FarmError (e.g. "interrupted", "all workers exited").
+    std::function<std::string()> should_stop;
+    // Re-open the stream for this long when the coordinator is unreachable (a restart).
+    int reconnect_seconds = 0;
+    bool quiet = false;
+};
+
+class FarmClient {
+  public:
+    // "host:port"; plaintext. Connection errors surface on the first call.
+    explicit FarmClient(const std::string& address);
+
+    const std::string& Address() const { return address_; }
+
+    // Uploads the bundle's files that the store lacks (each content once), then submits
+    // the job with `spec`'s name, options, frames and priority; fills in scene_path and
+    // files itself. Returns the job id.
+    std::string Submit(const std::vector<BundleEntry>& bundle, v1::JobSpec spec);
+    v1::JobStatus GetJob(const std::string& job_id);
+    std::vector<v1::JobStatus> ListJobs();
+    v1::JobStatus Cancel(const std::string& job_id);
+    // Streams the frame's EXR (or PNG preview) into `path`, atomically: a temporary file
+    // in the same folder, then a rename.
+    void DownloadFrame(const std::string& job_id, int frame, bool preview, const std::string& path);
+    // Follows the job's events until it finishes, showing progress and failures on
+    // stderr; returns the final status.
+    v1::JobStatus Follow(const std::string& job_id, const FollowOptions& options);
+
+  private:
+    std::string address_;
+    std::shared_ptr<grpc::Channel> channel_;
+    std::unique_ptr<v1::Farm::Stub> farm_;
+    std::unique_ptr<v1::BlobStore::Stub> blobs_;
+};
+
+}  // namespace tessera

@@ -1,0 +1,195 @@
+// `tessera status`, `watch`, `cancel` and `fetch`: a job on a running coordinator.
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <memory>
+
+#include "farm_commands.h"
+#include "job_options.h"
+#include "job_progress.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string LocalTime(int64_t unix_ms) {
+    if (unix_ms <= 0) return "-";
+    std::time_t t = static_cast<std::time_t>(unix_ms / 1000);
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+    return buf;
+}
+
+void PrintJobDetail(const v1::JobStatus& job) {
+    int percent = job.tasks_total() > 0 ? job.tasks_done() * 100 / job.tasks_total() : 0;
+    std::printf("job %s  %s\n", job.job_id().c_str(), job.name().c_str());
+    std::printf("  state      %s\n", JobStateName(job.state()).c_str());
+    std::printf("  priority   %d\n", job.priority());
+    std::printf("  image      %dx%d, %d spp\n", job.width(), job.height(), job.spp());
+    std::printf("  tasks      %d/%d done (%d%%), %lld leases granted\n", job.tasks_done(),
+                job.tasks_total(), percent, static_cast<long long>(job.leases_granted()));
+    std::printf("  frames     %d/%d done\n", FramesDone(job), job.frames_size());
+    std::printf("  submitted  %s\n", LocalTime(job.submitted_unix_ms()).c_str());
+    if (job.finished_unix_ms() > 0)
+        std::printf(
+            "  finished   %s (after %s)\n", LocalTime(job.finished_unix_ms()).c_str(),
+            FormatDuration((job.finished_unix_ms() - job.submitted_unix_ms()) * 1e-3).c_str());
+    if (!job.error().empty()) std::printf("  error      %s\n", job.error().c_str());
+    for (const v1::FrameStatus& f : job.frames())
+        std::printf("  frame %-5d %-10s %d/%d tasks%s%s\n", f.frame(),
+                    FrameStateName(f.state()).c_str(), f.tasks_done(), f.tasks_total(),
+                    f.exr_path().empty() ? "" : "  ", f.exr_path().c_str());
+    if (job.failures_size() > 0) std::printf("  failures (most recent first):\n");
+    for (const v1::TaskFailure& f : job.failures())
+        std::printf("    frame %d task %d attempt %d on %s: %s\n", f.frame(), f.task_index(),
+                    f.attempt(), f.worker().c_str(), f.message().c_str());
+}
+
+void PrintJobTable(const std::vector<v1::JobStatus>& jobs) {
+    if (jobs.empty()) {
+        std::printf("no jobs\n");
+        return;
+    }
+    int id_width = 6, name_width = 4;
+    for (const v1::JobStatus& j : jobs) {
+        id_width = std::max(id_width, static_cast<int>(j.job_id().size()));
+        name_width = std::max(name_width, static_cast<int>(j.name().size()));
+    }
+    std::printf("%-*s  %-*s  %-9s  %4s  %-13s  %-7s  %s\n", id_width, "JOB ID", name_width, "NAME",
+                "STATE", "PRIO", "TASKS", "FRAMES", "SUBMITTED");
+    for (const v1::JobStatus& j : jobs) {
+        std::string tasks = std::to_string(j.tasks_done()) + "/" + std::to_string(j.tasks_total());
+        std::string frames = std::to_string(FramesDone(j)) + "/" + std::to_string(j.frames_size());
+        std::printf("%-*s  %-*s  %-9s  %4d  %-13s  %-7s  %s\n", id_width, j.job_id().c_str(),
+                    name_width, j.name().c_str(), JobStateName(j.state()).c_str(), j.priority(),
+                    tasks.c_str(), frames.c_str(), LocalTime(j.submitted_unix_ms()).c_str());
+    }
+}
+
+struct JobCommandOptions {
+    std::string job_id;
+    std::string coordinator;
+    std::string output_dir;
+    bool preview = false;
+    bool quiet = false;
+};
+
+void RunStatus(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    if (o.job_id.empty())
+        PrintJobTable(client.ListJobs());
+    else
+        PrintJobDetail(client.GetJob(o.job_id));
+}
+
+void RunWatch(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    FollowOptions follow;
+    follow.quiet = o.quiet;
+    follow.reconnect_seconds = 30;
+    if (int code = FollowJob(client, o.job_id, follow); code != 0) throw CLI::RuntimeError(code);
+}
+
+void RunCancel(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    v1::JobStatus status = client.Cancel(o.job_id);
+    spdlog::info("job {} is {}", o.job_id, JobStateName(status.state()));
+}
+
+void RunFetch(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    for (const std::string& path : FetchFrames(client, o.job_id, o.output_dir, o.preview))
+        std::printf("%s\n", path.c_str());
+}
+
+CLI::App* AddJobCommand(CLI::App& app, const char* name, const char* help,
+                        std::shared_ptr<JobCommandOptions> o, bool job_required) {
+    CLI::App* cmd = app.add_subcommand(name, help);
+    CLI::Option* job = cmd->add_option("job", o->job_id, "Job id");
+    if (job_required) job->required();
+    AddCoordinatorOption(*cmd, o->coordinator);
+    return cmd;
+}
+
+}  // namespace
+
+int FollowJob(FarmClient& client, const std::string& job_id, const FollowOptions& options) {
+    v1::JobStatus job = client.Follow(job_id, options);
+    double seconds = (job.finished_unix_ms() - job.submitted_unix_ms()) * 1e-3;
+    switch (job.state()) {
+        case v1::JOB_STATE_DONE:
+            spdlog::info("job {} done: {} frame(s), {} tasks in {}", job_id, job.frames_size(),
+                         job.tasks_total(), FormatDuration(std::max(seconds, 0.0)));
+            return 0;
+        case v1::JOB_STATE_CANCELLED:
+            spdlog::error("job {} was cancelled", job_id);
+            return kExitJobCancelled;
+        default:
+            spdlog::error("job {} failed: {}", job_id,
+                          job.error().empty() ? std::string("(no reason given)") : job.error());
+            return kExitJobFailed;
+    }
+}
+
+std::vector<std::string> FetchFrames(FarmClient& client, const std::string& job_id,
+                                     const std::string& dir, bool previews) {
+    v1::JobStatus job = client.GetJob(job_id);
+    std::vector<int> done;
+    for (const v1::FrameStatus& f : job.frames())
+        if (f.state() == v1::FRAME_STATE_DONE) done.push_back(f.frame());
+    if (done.empty())
+        throw std::runtime_error("job " + job_id + " (" + JobStateName(job.state()) +
+                                 ") has no finished frame to fetch yet");
+    if (static_cast<int>(done.size()) < job.frames_size())
+        spdlog::warn("job {} is {}: fetching the {} of {} frames that are done", job_id,
+                     JobStateName(job.state()), done.size(), job.frames_size());
+    fs::create_directories(dir);
+    std::vector<std::string> written;
+    for (int frame : done) {
+        char number[16];
+        std::snprintf(number, sizeof number, "%04d", frame);
+        std::string stem = (fs::path(dir) / (job.name() + "." + number)).string();
+        client.DownloadFrame(job_id, frame, false, stem + ".exr");
+        written.push_back(stem + ".exr");
+        if (previews) {
+            client.DownloadFrame(job_id, frame, true, stem + ".png");
+            written.push_back(stem + ".png");
+        }
+    }
+    return written;
+}
+
+void AddJobCommands(CLI::App& app) {
+    auto status = std::make_shared<JobCommandOptions>();
+    AddJobCommand(app, "status", "Show one job in detail, or all jobs as a table", status, false)
+        ->callback([status] { RunStatus(*status); });
+
+    auto watch = std::make_shared<JobCommandOptions>();
+    CLI::App* watch_cmd = AddJobCommand(
+        app, "watch", "Follow a job's progress; exit 0 when done, 3 failed, 4 cancelled", watch,
+        true);
+    watch_cmd->add_flag("-q,--quiet", watch->quiet, "No progress display, only the outcome");
+    watch_cmd->callback([watch] { RunWatch(*watch); });
+
+    auto cancel = std::make_shared<JobCommandOptions>();
+    AddJobCommand(app, "cancel", "Cancel a job", cancel, true)->callback([cancel] {
+        RunCancel(*cancel);
+    });
+
+    auto fetch = std::make_shared<JobCommandOptions>();
+    CLI::App* fetch_cmd = AddJobCommand(
+        app, "fetch", "Download a job's finished frames as DIR/<name>.<frame:04>.exr", fetch, true);
+    fetch_cmd->add_option("-o,--output", fetch->output_dir, "Folder for the frames")->required();
+    fetch_cmd->add_flag("--preview", fetch->preview, "Also the PNG previews (<name>.<frame>.png)");
+    fetch_cmd->callback([fetch] { RunFetch(*fetch); });
+}
+
+}  // namespace tessera

@@ -1,0 +1,111 @@
+#include "job_options.h"
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+
+#include "convert.h"
+
+namespace tessera {
+
+namespace {
+
+// "A-B" or "A" with 0 <= A <= B; false for anything else.
+bool ParseFrames(const std::string& text, int* start, int* end) {
+    auto number = [](const std::string& s, int* out) {
+        if (s.empty() || s.size() > 9) return false;
+        for (char c : s)
+            if (!std::isdigit(static_cast<unsigned char>(c))) return false;
+        *out = std::stoi(s);
+        return true;
+    };
+    size_t dash = text.find('-');
+    if (dash == std::string::npos) {
+        *end = *start = 0;
+        return number(text, start) && number(text, end);
+    }
+    return number(text.substr(0, dash), start) && number(text.substr(dash + 1), end) &&
+           *end >= *start;
+}
+
+}  // namespace
+
+void JobOptions::AddTo(CLI::App& cmd) {
+    cmd.add_option("--frames", frames, "Frame range A-B (inclusive) or one frame A")
+        ->check(
+            [](const std::string& text) {
+                int a, b;
+                return ParseFrames(text, &a, &b) ? std::string()
+                                                 : "expected A-B with 0 <= A <= B, or A";
+            },
+            "A-B")
+        ->capture_default_str();
+    cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
+    cmd.add_option("--integrator", integrator, "Integrator (e.g. path, direct)");
+    cmd.add_option("--sampler", sampler, "Pixel sampler: stratified or independent")
+        ->check(CLI::IsMember({"stratified", "independent"}));
+    cmd.add_option("--max-depth", max_depth, "Maximum path length in bounces")
+        ->check(CLI::NonNegativeNumber);
+    cmd.add_option("--seed", seed, "Seed of every random stream");
+    cmd.add_option("--tile-size", tile_size, "Tile edge in pixels")->check(CLI::PositiveNumber);
+    cmd.add_option("--width", width, "Image width (overrides the scene)")
+        ->check(CLI::Range(1, 16384));
+    cmd.add_option("--height", height, "Image height (overrides the scene)")
+        ->check(CLI::Range(1, 16384));
+    cmd.add_option("--priority", priority, "Job priority: higher runs first")
+        ->capture_default_str();
+    cmd.add_option("--name", name,
+                   "Output file stem [A-Za-z0-9._-]+ (default: the scene file's stem, or its "
+                   "folder's name for scene.json)");
+}
+
+v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) const {
+    RenderOverrides o;
+    if (cmd.count("--spp")) o.spp = spp;
+    if (cmd.count("--max-depth")) o.max_depth = max_depth;
+    if (cmd.count("--tile-size")) o.tile_size = tile_size;
+    if (cmd.count("--width")) o.width = width;
+    if (cmd.count("--height")) o.height = height;
+    if (cmd.count("--seed")) o.seed = seed;
+    if (cmd.count("--integrator")) o.integrator = integrator;
+    if (cmd.count("--sampler"))
+        o.sampler = sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
+
+    v1::JobSpec spec;
+    spec.set_name(name.empty() ? DefaultJobName(scene) : name);
+    *spec.mutable_options() = ToProto(o);
+    int start = 0, end = 0;
+    if (!ParseFrames(frames, &start, &end))
+        throw std::invalid_argument("bad frame range '" + frames + "'");
+    spec.set_frame_start(start);
+    spec.set_frame_end(end);
+    spec.set_priority(priority);
+    return spec;
+}
+
+void AddCoordinatorOption(CLI::App& cmd, std::string& address) {
+    cmd.add_option("--coordinator", address, "The coordinator's HOST:PORT")
+        ->envname("TESSERA_COORDINATOR")
+        ->required();
+}
+
+void LogToStderr() {
+    if (spdlog::get("tessera")) return;
+    auto logger = spdlog::stderr_color_mt("tessera");
+    logger->set_pattern("%^%l%$: %v");
+    spdlog::set_default_logger(logger);
+}
+
+std::string DefaultJobName(const std::string& scene) {
+    std::filesystem::path p = std::filesystem::absolute(scene);
+    std::string name = p.stem().string();
+    if (name == "scene" && !p.parent_path().filename().empty())
+        name = p.parent_path().filename().string();
+    for (char& c : name)
+        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-')
+            c = '_';
+    return name.empty() ? "job" : name;
+}
+
+}  // namespace tessera

@@ -1,0 +1,38 @@
+#pragma once
+
+// Command-line options shared by the commands that talk to a farm: what a job renders
+// (`submit` and `farm` take the same ones as `render`) and where the coordinator is.
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "tessera/v1/tessera.pb.h"
+
+namespace tessera {
+
+struct JobOptions {
+    std::string name;
+    std::string frames = "0-0";
+    int priority = 0;
+    // CLI11 fills plain values; only the given ones become render overrides.
+    int spp = 0, max_depth = 0, tile_size = 0, width = 0, height = 0;
+    uint64_t seed = 0;
+    std::string integrator, sampler;
+
+    void AddTo(CLI::App& cmd);
+    // The job's spec, without its bundle (scene path and files): what `cmd` was given.
+    v1::JobSpec Spec(const CLI::App& cmd, const std::string& scene) const;
+};
+
+// --coordinator HOST:PORT, or $TESSERA_COORDINATOR.
+void AddCoordinatorOption(CLI::App& cmd, std::string& address);
+
+// Sends log lines (and the errors main() prints) to stderr: stdout carries only results
+// that scripts read, such as the job id that `submit` prints.
+void LogToStderr();
+
+// A job name from a scene path: the file's stem, or its folder's name for the common
+// "scene.json", with characters outside [A-Za-z0-9._-] replaced by '_'.
+std::string DefaultJobName(const std::string& scene);
+
+}  // namespace tessera

@@ -1,0 +1,212 @@
+#include "blob_store.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "errors.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string ErrnoText() { return std::strerror(errno); }
+
+void FsyncPath(const std::string& path) {
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return;
+    ::fsync(fd);
+    ::close(fd);
+}
+
+}  // namespace
+
+BlobStore::BlobStore(std::string root, uint64_t max_blob_bytes)
+    : root_(std::move(root)), max_blob_bytes_(max_blob_bytes) {
+    // All 256 shard folders up front: a commit then never creates one.
+    static const char* kHex = "0123456789abcdef";
+    for (int i = 0; i < 256; ++i) {
+        const fs::path shard = fs::path(root_) / std::string{kHex[i >> 4], kHex[i & 15]};
+        fs::create_directories(shard);
+        for (const fs::directory_entry& e : fs::directory_iterator(shard)) {
+            if (e.path().extension() == ".tmp") {  // left by a crash mid-upload
+                std::error_code ec;
+                fs::remove(e.path(), ec);
+            }
+        }
+    }
+    FsyncPath(root_);
+}
+
+void BlobStore::CheckHash(std::string_view hash) {
+    if (!IsSha256Hex(hash))
+        ThrowError(ErrorCode::kInvalidArgument,
+                   "malformed blob hash '" + std::string(hash.substr(0, 80)) +
+                       "': expected 64 lowercase hex digits (SHA-256)");
+}
+
+std::string BlobStore::PathOf(const std::string& hash) const {
+    return root_ + "/" + hash.substr(0, 2) + "/" + hash;
+}
+
+// Beside the final name, so that the rename stays within one folder.
+std::string BlobStore::TempPath(const std::string& hash) const {
+    static std::atomic<uint64_t> counter{0};
+    return PathOf(hash) + "." + std::to_string(::getpid()) + "." +
+           std::to_string(counter.fetch_add(1)) + ".tmp";
+}
+
+bool BlobStore::Has(const std::string& hash) const { return Size(hash).has_value(); }
+
+std::optional<uint64_t> BlobStore::Size(const std::string& hash) const {
+    if (!IsSha256Hex(hash)) return std::nullopt;
+    struct stat st;
+    if (::stat(PathOf(hash).c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return std::nullopt;
+    return static_cast<uint64_t>(st.st_size);
+}
+
+std::string BlobStore::Read(const std::string& hash) const {
+    CheckHash(hash);
+    std::ifstream in(PathOf(hash), std::ios::binary);
+    if (!in) ThrowError(ErrorCode::kNotFound, "no blob " + hash);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) ThrowError(ErrorCode::kInternal, "cannot read blob " + hash);
+    return std::move(ss).str();
+}
+
+bool BlobStore::Put(const std::string& hash, std::string_view bytes) {
+    std::unique_ptr<BlobWriter> writer = BeginWrite(hash, bytes.size());
+    writer->Append(bytes);
+    return writer->Commit();
+}
+
+std::unique_ptr<BlobWriter> BlobStore::BeginWrite(const std::string& hash, uint64_t size) {
+    CheckHash(hash);
+    if (size > max_blob_bytes_)
+        ThrowError(ErrorCode::kResourceExhausted, "blob " + hash + " has " + std::to_string(size) +
+                                                      " bytes; this coordinator accepts at most " +
+                                                      std::to_string(max_blob_bytes_));
+    return std::unique_ptr<BlobWriter>(new BlobWriter(*this, hash, size));
+}
+
+void BlobStore::Materialize(const std::string& hash, const std::string& dest) const {
+    CheckHash(hash);
+    std::string src = PathOf(hash);
+    if (!Has(hash)) ThrowError(ErrorCode::kNotFound, "no blob " + hash);
+    fs::create_directories(fs::path(dest).parent_path());
+    std::error_code ec;
+    fs::remove(dest, ec);
+    fs::create_hard_link(src, dest, ec);
+    if (ec) fs::copy_file(src, dest, fs::copy_options::overwrite_existing);
+}
+
+BlobWriter::BlobWriter(const BlobStore& store, std::string hash, uint64_t size)
+    : store_(store), hash_(std::move(hash)), size_(size) {}
+
+BlobWriter::~BlobWriter() { Discard(); }
+
+void BlobWriter::Discard() {
+    closed_ = true;
+    buffer_ = std::string();
+    if (fd_ >= 0) {
+        ::close(fd_);
+        fd_ = -1;
+    }
+    if (!temp_path_.empty()) {
+        ::unlink(temp_path_.c_str());
+        temp_path_.clear();
+    }
+}
+
+void BlobWriter::OpenTemp() {
+    temp_path_ = store_.TempPath(hash_);
+    fd_ = ::open(temp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd_ < 0) {
+        std::string why = ErrnoText();
+        temp_path_.clear();
+        Discard();
+        ThrowError(ErrorCode::kInternal,
+                   "cannot create a temporary file for blob " + hash_ + ": " + why);
+    }
+}
+
+void BlobWriter::WriteOut(std::string_view data) {
+    if (fd_ < 0) OpenTemp();
+    while (!data.empty()) {
+        ssize_t n = ::write(fd_, data.data(), data.size());
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            std::string why = ErrnoText();
+            Discard();
+            ThrowError(ErrorCode::kInternal, "cannot write blob " + hash_ + ": " + why);
+        }
+        data.remove_prefix(static_cast<size_t>(n));
+    }
+}
+
+void BlobWriter::Append(std::string_view data) {
+    if (closed_) ThrowError(ErrorCode::kInternal, "blob writer is closed");
+    if (data.size() > size_ - received_) {
+        Discard();
+        ThrowError(ErrorCode::kDataLoss, "blob " + hash_ + " is larger than its declared " +
+                                             std::to_string(size_) + " bytes");
+    }
+    sha_.Update(data);
+    received_ += data.size();
+    buffer_.append(data);
+    if (buffer_.size() >= kMemoryBytes) {
+        WriteOut(buffer_);
+        buffer_.clear();
+    }
+}
+
+bool BlobWriter::Commit() {
+    if (closed_) ThrowError(ErrorCode::kInternal, "blob writer is closed");
+    if (received_ != size_) {
+        Discard();
+        ThrowError(ErrorCode::kDataLoss, "blob " + hash_ + " arrived with " +
+                                             std::to_string(received_) + " bytes, declared " +
+                                             std::to_string(size_));
+    }
+    std::string actual = sha_.Finish();
+    if (actual != hash_) {
+        Discard();
+        ThrowError(ErrorCode::kDataLoss,
+                   "blob bytes hash to " + actual + ", not to the declared " + hash_);
+    }
+    if (store_.Has(hash_)) {
+        Discard();
+        return false;
+    }
+    WriteOut(buffer_);
+    buffer_ = std::string();
+    if (::fsync(fd_) != 0) {
+        std::string why = ErrnoText();
+        Discard();
+        ThrowError(ErrorCode::kInternal, "cannot sync blob " + hash_ + ": " + why);
+    }
+    ::close(fd_);
+    fd_ = -1;
+    const std::string final_path = store_.PathOf(hash_);
+    if (::rename(temp_path_.c_str(), final_path.c_str()) != 0) {
+        std::string why = ErrnoText();
+        Discard();
+        ThrowError(ErrorCode::kInternal, "cannot store blob " + hash_ + ": " + why);
+    }
+    temp_path_.clear();
+    closed_ = true;
+    FsyncPath(fs::path(final_path).parent_path().string());
+    return true;
+}
+
+}  // namespace tessera

@@ -1,0 +1,93 @@
+#pragma once
+
+// The content-addressed blob store on disk: <root>/ab/abcdef... holds the blob whose
+// SHA-256 is abcdef.... A blob is written to a temporary file beside it
+// (<root>/ab/abcdef....<pid>.<n>.tmp), verified against the hash and size it claims,
+// fsync'd and renamed into place (then the folder is fsync'd), so a blob file either is
+// complete and correct or does not exist. Writers of the same blob may race: each writes
+// its own temporary file and the renames are atomic. Temporary files left by a crash
+// are removed at start-up.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "sha256.h"
+
+namespace tessera {
+
+class BlobWriter;
+
+class BlobStore {
+  public:
+    // Creates the folders and removes temporary files left by a crash. `max_blob_bytes`
+    // bounds what BeginWrite accepts (RESOURCE_EXHAUSTED beyond it).
+    explicit BlobStore(std::string root, uint64_t max_blob_bytes = uint64_t(1) << 40);
+
+    // INVALID_ARGUMENT unless `hash` is 64 lowercase hex digits.
+    static void CheckHash(std::string_view hash);
+
+    bool Has(const std::string& hash) const;
+    // The blob's size, if it is present.
+    std::optional<uint64_t> Size(const std::string& hash) const;
+    std::string PathOf(const std::string& hash) const;
+    // The blob's bytes; NOT_FOUND if absent.
+    std::string Read(const std::string& hash) const;
+
+    // Stores `bytes` as blob `hash`: DATA_LOSS if they do not hash to it. Returns false
+    // if the blob was already present.
+    bool Put(const std::string& hash, std::string_view bytes);
+    // Starts a streamed upload of a blob that claims `hash` and `size`.
+    std::unique_ptr<BlobWriter> BeginWrite(const std::string& hash, uint64_t size);
+
+    // Places a copy of the blob at `dest` (a hard link where the file system allows,
+    // since blobs are never modified); NOT_FOUND if absent.
+    void Materialize(const std::string& hash, const std::string& dest) const;
+
+    uint64_t MaxBlobBytes() const { return max_blob_bytes_; }
+
+  private:
+    friend class BlobWriter;
+    std::string TempPath(const std::string& hash) const;
+
+    std::string root_;
+    uint64_t max_blob_bytes_;
+};
+
+class BlobWriter {
+  public:
+    ~BlobWriter();  // removes the temporary file unless committed
+    BlobWriter(const BlobWriter&) = delete;
+    BlobWriter& operator=(const BlobWriter&) = delete;
+
+    // DATA_LOSS if the bytes exceed the declared size (the temporary file is removed).
+    // Small blobs stay in memory until Commit, which then does all the file work.
+    void Append(std::string_view data);
+    // Verifies size and hash (DATA_LOSS on a mismatch, temporary file removed), then
+    // makes the blob durable and visible. Returns false if it was already present.
+    bool Commit();
+    uint64_t Received() const { return received_; }
+
+  private:
+    friend class BlobStore;
+    static constexpr size_t kMemoryBytes = 8 << 20;
+
+    BlobWriter(const BlobStore& store, std::string hash, uint64_t size);
+    void Discard();
+    void OpenTemp();
+    void WriteOut(std::string_view data);
+
+    const BlobStore& store_;
+    std::string hash_;
+    uint64_t size_;
+    uint64_t received_ = 0;
+    std::string temp_path_;
+    int fd_ = -1;
+    bool closed_ = false;
+    std::string buffer_;  // bytes not yet written to the temporary file
+    Sha256 sha_;
+};
+
+}  // namespace tessera

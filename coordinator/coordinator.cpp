@@ -1,0 +1,164 @@
+#include "coordinator.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "errors.h"
+#include "plan/render_plan.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string EnsureDir(const std::string& dir, const char* what) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec || !fs::is_directory(dir))
+        throw std::runtime_error(fmt::format("cannot create the {} directory {}: {}", what, dir,
+                                             ec ? ec.message() : "not a directory"));
+    return dir;
+}
+
+}  // namespace
+
+Coordinator::StateLock::StateLock(const std::string& state_dir) {
+    EnsureDir(state_dir, "state");
+    const std::string path = state_dir + "/LOCK";
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+        ::close(fd_);
+        throw std::runtime_error("state directory " + state_dir +
+                                 " is in use by another coordinator (" + path + " is locked)");
+    }
+}
+
+Coordinator::StateLock::~StateLock() {
+    if (fd_ >= 0) ::close(fd_);
+}
+
+Coordinator::Coordinator(const CoordinatorOptions& options, const Clock& clock)
+    : options_(options),
+      clock_(clock),
+      lock_(options.state_dir),
+      blobs_(options.state_dir + "/blobs", options.limits.max_bundle_bytes),
+      scheduler_(options.state_dir + "/tessera.db", options.scheduler, clock),
+      planner_(blobs_, options.state_dir + "/jobs", options.limits),
+      assembly_(scheduler_, blobs_, EnsureDir(options.output_dir, "output"), clock),
+      dispatcher_(scheduler_),
+      watches_(scheduler_) {
+    scheduler_.SetListener(this);
+}
+
+Coordinator::~Coordinator() {
+    StopWaiting();
+    Stop();
+    scheduler_.SetListener(nullptr);
+}
+
+void Coordinator::Start() {
+    dispatcher_.Start();
+    watches_.Start();
+    assembly_.Start();
+    sweep_thread_ = std::thread([this] { SweepLoop(); });
+}
+
+void Coordinator::StopWaiting() {
+    dispatcher_.Stop();
+    watches_.Stop();
+}
+
+void Coordinator::Stop() {
+    {
+        std::lock_guard lock(sweep_mu_);
+        sweep_stop_ = true;
+    }
+    sweep_cv_.notify_all();
+    if (sweep_thread_.joinable()) sweep_thread_.join();
+    assembly_.Stop();
+}
+
+void Coordinator::SweepLoop() {
+    constexpr auto kCheckpointInterval = std::chrono::seconds(1);
+    auto next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
+    std::unique_lock lock(sweep_mu_);
+    while (!sweep_stop_) {
+        sweep_cv_.wait_for(lock, std::chrono::milliseconds(options_.sweep_interval_ms),
+                           [this] { return sweep_stop_; });
+        if (sweep_stop_) break;
+        lock.unlock();
+        try {
+            scheduler_.Sweep();
+            if (std::chrono::steady_clock::now() >= next_checkpoint) {
+                scheduler_.Checkpoint();
+                next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
+            }
+        } catch (const std::exception& e) {
+            spdlog::error("lease sweep failed: {}", e.what());
+        }
+        lock.lock();
+    }
+}
+
+std::string Coordinator::SubmitJob(const v1::JobSpec& spec) {
+    PlannedJob planned = planner_.Plan(spec);
+    std::string job_id = scheduler_.AddJob(planned.job);
+    try {
+        planned.Adopt(planner_.JobsDir(), job_id);
+    } catch (const std::exception& e) {
+        // The bundle only served validation; the job does not need it to run.
+        spdlog::warn("job {}: cannot keep its bundle: {}", job_id, e.what());
+    }
+    return job_id;
+}
+
+std::string Coordinator::FrameFile(const std::string& job_id, int frame, bool preview) {
+    std::string path = scheduler_.FrameExrPath(job_id, frame);
+    if (preview) path = fs::path(path).replace_extension(".png").string();
+    if (!fs::is_regular_file(path))
+        ThrowError(ErrorCode::kNotFound, fmt::format("frame {} of {} is recorded as written, but "
+                                                     "{} is missing",
+                                                     frame, job_id, path));
+    return path;
+}
+
+void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                               const std::string& result_hash) {
+    const LeaseCheck check = scheduler_.CheckLease(task_id, lease_id);
+    BlobStore::CheckHash(result_hash);
+    if (!blobs_.Has(result_hash))
+        ThrowError(ErrorCode::kNotFound, "result blob " + result_hash +
+                                             " was not uploaded (PutBlob before CompleteTask)");
+    TileResult result;
+    try {
+        result = DecodeTileResult(blobs_.Read(result_hash));
+    } catch (const std::runtime_error& e) {
+        if (auto* ce = dynamic_cast<const CoordinatorError*>(&e)) throw *ce;
+        ThrowError(ErrorCode::kInvalidArgument,
+                   "result blob " + result_hash + " is not a tile result: " + e.what());
+    }
+    const PixelBounds& t = check.tile;
+    const PixelBounds& g = result.region;
+    const bool covers = g.lo.x <= t.lo.x && g.lo.y <= t.lo.y && g.hi.x >= t.hi.x &&
+                        g.hi.y >= t.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
+                        g.hi.x <= check.resolution.x && g.hi.y <= check.resolution.y;
+    if (result.task_index != check.task_index || !covers)
+        ThrowError(
+            ErrorCode::kInvalidArgument,
+            fmt::format("result blob {} holds tile {} [{},{})-[{},{}), not task {}'s tile {} "
+                        "of {} frame {}",
+                        result_hash, result.task_index, g.lo.x, g.lo.y, g.hi.x, g.hi.y, task_id,
+                        check.task_index, check.job_id, check.frame));
+    scheduler_.Complete(worker_id, task_id, lease_id, result_hash);
+}
+
+}  // namespace tessera

@@ -1,0 +1,209 @@
+#include "job_planner.h"
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <filesystem>
+#include <random>
+#include <set>
+
+#include "bundle.h"
+#include "convert.h"
+#include "core/error.h"
+#include "errors.h"
+#include "plan/frame_renderer.h"
+#include "plan/render_plan.h"
+#include "scene/scene_loader.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr size_t kMaxNameBytes = 200;
+constexpr int kMaxFiles = 100000;
+
+bool IsNameChar(char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' ||
+           c == '_' || c == '-';
+}
+
+std::string StagingName() {
+    static std::atomic<uint64_t> counter{0};
+    std::random_device rd;
+    return fmt::format(".staging-{:08x}-{}", rd(), counter.fetch_add(1));
+}
+
+[[noreturn]] void Invalid(const std::string& message) {
+    ThrowError(ErrorCode::kInvalidArgument, message);
+}
+
+[[noreturn]] void TooLarge(const std::string& message) {
+    ThrowError(ErrorCode::kResourceExhausted, message);
+}
+
+}  // namespace
+
+PlannedJob::~PlannedJob() {
+    if (!staging_.empty()) {
+        std::error_code ec;
+        fs::remove_all(staging_, ec);
+    }
+}
+
+PlannedJob::PlannedJob(PlannedJob&& other) noexcept
+    : job(std::move(other.job)), staging_(std::exchange(other.staging_, {})) {}
+
+void PlannedJob::Adopt(const std::string& jobs_dir, const std::string& job_id) {
+    fs::path dest = fs::path(jobs_dir) / job_id;
+    std::error_code ec;
+    fs::remove_all(dest, ec);
+    fs::rename(staging_, dest);
+    staging_.clear();
+}
+
+JobPlanner::JobPlanner(const BlobStore& blobs, std::string jobs_dir, PlannerLimits limits)
+    : blobs_(blobs), jobs_dir_(std::move(jobs_dir)), limits_(limits) {
+    fs::create_directories(jobs_dir_);
+    for (const fs::directory_entry& e : fs::directory_iterator(jobs_dir_)) {
+        if (e.path().filename().string().rfind(".staging-", 0) == 0) {
+            std::error_code ec;
+            fs::remove_all(e.path(), ec);
+        }
+    }
+}
+
+void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
+    if (spec.name().size() > kMaxNameBytes)
+        Invalid(fmt::format("job name is longer than {} bytes", kMaxNameBytes));
+    for (char c : spec.name())
+        if (!IsNameChar(c))
+            Invalid("job name '" + spec.name() + "' may contain only A-Z a-z 0-9 . _ -");
+    if (spec.scene_path().empty()) Invalid("scene_path is empty");
+    if (spec.frame_start() < 0)
+        Invalid(fmt::format("frame_start {} is negative", spec.frame_start()));
+    if (spec.frame_end() < spec.frame_start())
+        Invalid(fmt::format("frame_end {} is before frame_start {}", spec.frame_end(),
+                            spec.frame_start()));
+    const int64_t frames = int64_t(spec.frame_end()) - spec.frame_start() + 1;
+    if (frames > limits_.max_frames)
+        TooLarge(fmt::format("{} frames requested; this coordinator allows at most {} per job",
+                             frames, limits_.max_frames));
+    if (spec.files_size() > kMaxFiles)
+        TooLarge(fmt::format("bundle has {} files; at most {} are allowed", spec.files_size(),
+                             kMaxFiles));
+
+    std::set<std::string> paths;
+    uint64_t total = 0;
+    bool has_scene = false;
+    for (const v1::BundleFile& f : spec.files()) {
+        if (std::string err = ValidateBundlePath(f.path()); !err.empty())
+            Invalid("bundle file: " + err);
+        if (!paths.insert(f.path()).second) Invalid("bundle lists '" + f.path() + "' twice");
+        if (!IsSha256Hex(f.hash()))
+            Invalid("bundle file '" + f.path() + "' has a malformed hash '" +
+                    f.hash().substr(0, 80) + "'");
+        total += f.size();
+        has_scene |= f.path() == spec.scene_path();
+    }
+    if (!has_scene)
+        Invalid("scene_path '" + spec.scene_path() + "' is not among the bundle's files");
+    if (total > limits_.max_bundle_bytes)
+        TooLarge(fmt::format("bundle holds {} bytes; this coordinator allows at most {} MiB", total,
+                             limits_.max_bundle_bytes >> 20));
+    for (const v1::BundleFile& f : spec.files()) {
+        std::optional<uint64_t> size = blobs_.Size(f.hash());
+        if (!size)
+            ThrowError(ErrorCode::kNotFound,
+                       "bundle file '" + f.path() + "': blob " + f.hash() + " was never uploaded");
+        if (*size != f.size())
+            Invalid(fmt::format("bundle file '{}' declares {} bytes but blob {} has {}", f.path(),
+                                f.size(), f.hash(), *size));
+    }
+    const v1::RenderOptions& o = spec.options();
+    if (o.has_spp() && o.spp() < 1) Invalid(fmt::format("spp {} is below 1", o.spp()));
+    if (o.has_width() && o.width() < 1) Invalid(fmt::format("width {} is below 1", o.width()));
+    if (o.has_height() && o.height() < 1) Invalid(fmt::format("height {} is below 1", o.height()));
+    if (o.has_tile_size() && o.tile_size() < 1)
+        Invalid(fmt::format("tile_size {} is below 1", o.tile_size()));
+    if (o.has_max_depth() && o.max_depth() < 0)
+        Invalid(fmt::format("max_depth {} is negative", o.max_depth()));
+    CheckSettings(o.has_width() ? o.width() : 1, o.has_height() ? o.height() : 1,
+                  o.has_spp() ? o.spp() : 1, 0);
+}
+
+void JobPlanner::CheckSettings(int width, int height, int spp, int64_t tasks) const {
+    if (width > limits_.max_resolution || height > limits_.max_resolution)
+        TooLarge(fmt::format("resolution {}x{} is over this coordinator's limit of {} per axis",
+                             width, height, limits_.max_resolution));
+    if (spp > limits_.max_spp)
+        TooLarge(
+            fmt::format("{} spp is over this coordinator's limit of {}", spp, limits_.max_spp));
+    if (tasks > limits_.max_tasks)
+        TooLarge(
+            fmt::format("the job would have {} tasks; this coordinator allows at most {} "
+                        "(use fewer frames or larger tiles)",
+                        tasks, limits_.max_tasks));
+}
+
+PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
+    CheckSpec(spec_in);
+    v1::JobSpec spec = spec_in;
+    if (spec.name().empty()) {
+        std::string stem = fs::path(spec.scene_path()).stem().string();
+        std::string name;
+        for (char c : stem) name += IsNameChar(c) ? c : '_';
+        spec.set_name(name.empty() ? "frame" : name);
+    }
+
+    PlannedJob planned;
+    planned.staging_ = (fs::path(jobs_dir_) / StagingName()).string();
+    const fs::path bundle = fs::path(planned.staging_) / "bundle";
+    for (const v1::BundleFile& f : spec.files())
+        blobs_.Materialize(f.hash(), (bundle / f.path()).string());
+
+    RenderOverrides overrides;
+    try {
+        overrides = FromProto(spec.options());
+    } catch (const std::invalid_argument& e) {
+        Invalid(e.what());
+    }
+    LoadedScene loaded;
+    try {
+        loaded = LoadSceneFile((bundle / spec.scene_path()).string(), overrides);
+        FrameRenderer check(*loaded.scene, loaded.settings);  // rejects unrenderable settings
+    } catch (const SceneError& e) {
+        Invalid(e.what());
+    } catch (const std::invalid_argument& e) {
+        Invalid(e.what());
+    }
+    const RenderSettings& s = loaded.settings;
+    const Vec2i res = loaded.scene->GetCamera().Resolution();
+    const int frames = spec.frame_end() - spec.frame_start() + 1;
+    RenderSettings frame_settings = s;
+    frame_settings.frame = spec.frame_start();
+    const RenderPlan plan = MakeRenderPlan(res, frame_settings);
+    const int64_t tasks = int64_t(plan.TotalTasks()) * frames;
+    CheckSettings(res.x, res.y, s.spp, tasks);
+
+    NewJob& job = planned.job;
+    job.name = spec.name();
+    job.priority = spec.priority();
+    job.frame_start = spec.frame_start();
+    job.frame_end = spec.frame_end();
+    job.tasks_per_frame = plan.TotalTasks();
+    job.settings.width = res.x;
+    job.settings.height = res.y;
+    job.settings.spp = s.spp;
+    job.settings.max_depth = s.max_depth;
+    job.settings.tile_size = s.tile_size;
+    job.settings.seed = s.seed;
+    job.settings.integrator = s.integrator;
+    job.settings.sampler = s.sampler == SamplerType::kStratified ? "stratified" : "independent";
+    job.settings.scene_name = fs::path(spec.scene_path()).filename().string();
+    job.spec = spec.SerializeAsString();
+    return planned;
+}
+
+}  // namespace tessera

@@ -1,0 +1,65 @@
+#pragma once
+
+// Turns a submitted JobSpec into a NewJob for the scheduler: validates the spec against
+// the coordinator's limits, rebuilds the scene bundle from blobs under
+// <jobs>/<job>/bundle/, loads the scene (which validates it and resolves its settings)
+// and plans each frame: one "render" task per tile.
+
+#include <cstdint>
+#include <string>
+
+#include "blob_store.h"
+#include "store.h"
+#include "tessera/v1/tessera.pb.h"
+
+namespace tessera {
+
+struct PlannerLimits {
+    int max_resolution = 16384;  // per axis
+    int max_spp = 65536;
+    int max_frames = 10000;
+    uint64_t max_bundle_bytes = uint64_t(1024) << 20;
+    int64_t max_tasks = 1000000;  // per job, all frames
+};
+
+// A planned job whose bundle sits in a staging folder until the job has an id.
+// The staging folder is removed unless Adopt() moves it.
+class PlannedJob {
+  public:
+    PlannedJob() = default;
+    ~PlannedJob();
+    PlannedJob(PlannedJob&& other) noexcept;
+    PlannedJob& operator=(PlannedJob&&) = delete;
+    PlannedJob(const PlannedJob&) = delete;
+
+    NewJob job;
+    // Moves the bundle to <jobs>/<job_id>/bundle.
+    void Adopt(const std::string& jobs_dir, const std::string& job_id);
+
+  private:
+    friend class JobPlanner;
+    std::string staging_;
+};
+
+class JobPlanner {
+  public:
+    // `jobs_dir` holds the jobs' bundles; stale staging folders in it are removed.
+    JobPlanner(const BlobStore& blobs, std::string jobs_dir, PlannerLimits limits);
+
+    // Throws CoordinatorError: INVALID_ARGUMENT (malformed spec, unsafe path, scene that
+    // does not load, with the loader's message), NOT_FOUND (a blob never uploaded,
+    // naming its path and hash), RESOURCE_EXHAUSTED (over a limit).
+    PlannedJob Plan(const v1::JobSpec& spec) const;
+
+    const std::string& JobsDir() const { return jobs_dir_; }
+
+  private:
+    void CheckSpec(const v1::JobSpec& spec) const;
+    void CheckSettings(int width, int height, int spp, int64_t tasks) const;
+
+    const BlobStore& blobs_;
+    std::string jobs_dir_;
+    PlannerLimits limits_;
+};
+
+}  // namespace tessera

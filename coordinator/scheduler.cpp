@@ -1,0 +1,576 @@
+#include "scheduler.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <charconv>
+
+#include "errors.h"
+#include "plan/render_plan.h"
+
+namespace tessera {
+
+namespace {
+
+constexpr int kMaxFailuresShown = 20;
+constexpr size_t kMaxMessageBytes = 4096;
+
+int64_t ParseId(const std::string& text, std::string_view prefix, const char* what) {
+    if (text.empty()) ThrowError(ErrorCode::kInvalidArgument, std::string(what) + " is empty");
+    int64_t id = 0;
+    const char* begin = text.data() + prefix.size();
+    const char* end = text.data() + text.size();
+    bool ok = text.size() > prefix.size() && text.compare(0, prefix.size(), prefix) == 0;
+    if (ok) {
+        auto [ptr, ec] = std::from_chars(begin, end, id);
+        ok = ec == std::errc() && ptr == end && id > 0;
+    }
+    if (!ok)
+        ThrowError(ErrorCode::kInvalidArgument,
+                   fmt::format("malformed {} '{}' (expected {}<number>)", what, text.substr(0, 80),
+                               prefix));
+    return id;
+}
+
+std::string FormatWorkerId(int64_t id) { return "w-" + std::to_string(id); }
+
+std::string Truncate(std::string s) {
+    if (s.size() > kMaxMessageBytes) s = s.substr(0, kMaxMessageBytes) + "...";
+    return s;
+}
+
+bool IsFinished(int state) {
+    return state == v1::JOB_STATE_DONE || state == v1::JOB_STATE_FAILED ||
+           state == v1::JOB_STATE_CANCELLED;
+}
+
+}  // namespace
+
+std::string FormatJobId(int64_t id) { return "job-" + std::to_string(id); }
+
+int64_t ParseJobId(const std::string& job_id) { return ParseId(job_id, "job-", "job id"); }
+
+Scheduler::Scheduler(const std::string& db_path, const SchedulerOptions& options,
+                     const Clock& clock)
+    : clock_(clock), options_(options), store_(db_path) {
+    const int64_t now = clock_.NowMs();
+    last_lease_id_ = store_.GetMeta("last_lease_id", 0);
+    for (const WorkerRow& w : store_.Workers()) workers_[w.id] = {w.name, w.threads, now, false};
+    for (const TaskRow& t : store_.LeasedTasks()) {
+        leases_[t.id] = {t.lease_id, t.worker_id, t.job_id, now + options_.lease_ms};
+        last_lease_id_ = std::max(last_lease_id_, t.lease_id);
+    }
+    if (!leases_.empty())
+        spdlog::info(
+            "recovered {} outstanding leases; each expires {} ms from now unless its "
+            "worker heartbeats",
+            leases_.size(), options_.lease_ms);
+}
+
+void Scheduler::Emit(const Events& events) {
+    if (!listener_) return;
+    for (const Event& e : events) {
+        switch (e.kind) {
+            case Event::kWork:
+                listener_->OnWorkAvailable();
+                break;
+            case Event::kJob:
+                listener_->OnJobChanged(e.job_id, e.message);
+                break;
+            case Event::kFrameReady:
+                listener_->OnFrameReady(e.job_id, e.frame);
+                break;
+        }
+    }
+}
+
+Scheduler::Worker& Scheduler::FindWorker(const std::string& worker_id, int64_t* id) {
+    *id = ParseId(worker_id, "w-", "worker id");
+    auto it = workers_.find(*id);
+    if (it == workers_.end())
+        ThrowError(ErrorCode::kNotFound, "unknown worker " + worker_id + ": register again");
+    Worker& w = it->second;
+    w.last_seen_ms = clock_.NowMs();
+    if (w.silent) {
+        w.silent = false;
+        spdlog::info("worker '{}' ({}) is back", w.name, worker_id);
+    }
+    return w;
+}
+
+std::string Scheduler::WorkerName(int64_t worker_id) const {
+    auto it = workers_.find(worker_id);
+    return it == workers_.end() ? FormatWorkerId(worker_id) : it->second.name;
+}
+
+JobRow Scheduler::LoadJob(int64_t job_id) {
+    std::optional<JobRow> job = store_.GetJob(job_id);
+    if (!job) ThrowError(ErrorCode::kNotFound, "no job " + FormatJobId(job_id));
+    return std::move(*job);
+}
+
+const Scheduler::JobInfo& Scheduler::Info(int64_t job_id) {
+    auto it = jobs_.find(job_id);
+    if (it != jobs_.end()) return *it->second;
+    JobRow row = LoadJob(job_id);
+    auto info = std::make_shared<JobInfo>();
+    auto spec = std::make_shared<v1::JobSpec>();
+    if (!spec->ParseFromString(store_.GetJobSpec(job_id)))
+        ThrowError(ErrorCode::kInternal, "stored spec of " + FormatJobId(job_id) + " is corrupt");
+    info->spec = std::move(spec);
+    info->name = row.name;
+    info->resolution = {row.settings.width, row.settings.height};
+    info->tiles = MakeTiles(info->resolution, row.settings.tile_size);
+    info->first_task_id = row.first_task_id;
+    info->tasks_total = row.tasks_total;
+    return *jobs_.emplace(job_id, std::move(info)).first->second;
+}
+
+WorkerRegistration Scheduler::RegisterWorker(const std::string& name, int threads) {
+    if (name.size() > 256)
+        ThrowError(ErrorCode::kInvalidArgument, "worker name is longer than 256 bytes");
+    for (char c : name)
+        if (static_cast<unsigned char>(c) < 0x20)
+            ThrowError(ErrorCode::kInvalidArgument, "worker name contains a control character");
+    std::lock_guard lock(mu_);
+    const int64_t now = clock_.NowMs();
+    std::string shown = name.empty() ? "worker" : name;
+    for (const auto& [id, w] : workers_)
+        if (w.name == shown && now - w.last_seen_ms < options_.lease_ms)
+            spdlog::warn("worker name '{}' is already in use by {}: names should be unique", shown,
+                         FormatWorkerId(id));
+    const int64_t id = store_.InsertWorker(shown, threads, now);
+    workers_[id] = {shown, threads, now, false};
+    spdlog::info("worker '{}' registered as {} ({} threads)", shown, FormatWorkerId(id), threads);
+    WorkerRegistration r;
+    r.worker_id = FormatWorkerId(id);
+    r.lease_duration_ms = static_cast<int>(options_.lease_ms);
+    r.heartbeat_interval_ms = static_cast<int>(std::max<int64_t>(1, options_.lease_ms / 3));
+    return r;
+}
+
+std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
+    Events events;
+    std::optional<LeasedTask> out;
+    {
+        std::lock_guard lock(mu_);
+        int64_t wid = 0;
+        Worker& worker = FindWorker(worker_id, &wid);
+        std::optional<TaskRow> task = store_.NextPendingTask();
+        if (!task) return std::nullopt;
+        const int64_t now = clock_.NowMs();
+        const JobInfo& info = Info(task->job_id);
+        const std::string job_id = FormatJobId(task->job_id);
+        SqliteTransaction txn(store_.Db());
+        const int job_state = store_.JobState(task->job_id).value_or(0);
+        const int64_t lease_id = last_lease_id_ + 1;
+        store_.SetMeta("last_lease_id", lease_id);
+        store_.LeaseTask(task->id, lease_id, wid);
+        store_.CountLease(task->job_id, now);
+        store_.MarkFrameRendering(task->job_id, task->frame, now);
+        const bool frame_started = store_.Db().Changes() == 1;
+        txn.Commit();
+        last_lease_id_ = lease_id;
+        leases_[task->id] = {lease_id, wid, task->job_id, now + options_.lease_ms};
+
+        out.emplace();
+        out->task_id = task->id;
+        out->lease_id = lease_id;
+        out->job_id = job_id;
+        out->frame = task->frame;
+        out->stage = task->stage;
+        out->task_index = task->task_index;
+        out->attempt = task->attempts + 1;
+        out->spec = info.spec;
+        out->deadline_ms = now + options_.lease_ms;
+        spdlog::info("lease {}: task {} ({} frame {} tile {}, attempt {}) to worker '{}'", lease_id,
+                     task->id, job_id, task->frame, task->task_index, out->attempt, worker.name);
+        if (job_state == v1::JOB_STATE_QUEUED) {
+            spdlog::info("job {} '{}' is running", job_id, info.name);
+            events.push_back({Event::kJob, job_id, "job running"});
+        }
+        if (frame_started)
+            events.push_back({Event::kJob, job_id, fmt::format("frame {} rendering", task->frame)});
+    }
+    Emit(events);
+    return out;
+}
+
+HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_id,
+                                    int64_t lease_id) {
+    std::lock_guard lock(mu_);
+    int64_t wid = 0;
+    FindWorker(worker_id, &wid);
+    HeartbeatReply reply;
+    if (task_id == 0) return reply;
+    auto it = leases_.find(task_id);
+    if (it != leases_.end() && it->second.lease_id == lease_id) {
+        it->second.deadline_ms = clock_.NowMs() + options_.lease_ms;
+        reply.lease_valid = true;
+        return reply;
+    }
+    if (std::optional<TaskRow> task = store_.GetTask(task_id))
+        reply.cancelled = store_.JobState(task->job_id) == v1::JOB_STATE_CANCELLED;
+    return reply;
+}
+
+const Scheduler::Lease& Scheduler::CurrentLease(int64_t task_id, int64_t lease_id, TaskRow* task) {
+    std::optional<TaskRow> row = store_.GetTask(task_id);
+    if (!row) ThrowError(ErrorCode::kNotFound, fmt::format("unknown task {}", task_id));
+    auto it = leases_.find(task_id);
+    if (it != leases_.end() && it->second.lease_id == lease_id) {
+        *task = std::move(*row);
+        return it->second;
+    }
+    std::string why;
+    const int job_state = store_.JobState(row->job_id).value_or(0);
+    if (job_state == v1::JOB_STATE_CANCELLED)
+        why = "its job was cancelled";
+    else if (job_state == v1::JOB_STATE_FAILED)
+        why = "its job failed";
+    else if (row->state == TaskState::kDone)
+        why = "the task is already done";
+    else if (row->state == TaskState::kLeased)
+        why = fmt::format("the task is now under lease {}", row->lease_id);
+    else
+        why = "the lease expired and the task was re-queued";
+    ThrowError(ErrorCode::kFailedPrecondition,
+               fmt::format("stale lease {} for task {}: {}; the result is discarded", lease_id,
+                           task_id, why));
+}
+
+LeaseCheck Scheduler::CheckLease(int64_t task_id, int64_t lease_id) {
+    std::lock_guard lock(mu_);
+    TaskRow task;
+    const Lease& lease = CurrentLease(task_id, lease_id, &task);
+    const JobInfo& info = Info(lease.job_id);
+    if (task.task_index < 0 || task.task_index >= static_cast<int>(info.tiles.size()))
+        ThrowError(ErrorCode::kInternal, fmt::format("task {} has no tile", task_id));
+    return {FormatJobId(task.job_id), task.frame, task.task_index, info.tiles[task.task_index],
+            info.resolution};
+}
+
+void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                         const std::string& result_hash) {
+    Events events;
+    {
+        std::lock_guard lock(mu_);
+        int64_t wid = 0;
+        Worker& worker = FindWorker(worker_id, &wid);
+        TaskRow task;
+        CurrentLease(task_id, lease_id, &task);
+        const std::string job_id = FormatJobId(task.job_id);
+        SqliteTransaction txn(store_.Db());
+        if (!store_.CompleteTask(task_id, lease_id, result_hash))
+            ThrowError(ErrorCode::kInternal,
+                       fmt::format("task {} changed under its lease", task_id));
+        store_.CountTaskDone(task.job_id);
+        const int frame_done = store_.CountFrameTaskDone(task.job_id, task.frame);
+        txn.Commit();
+        leases_.erase(task_id);
+        const int frame_total = static_cast<int>(Info(task.job_id).tiles.size());
+        spdlog::info("lease {}: task {} ({} frame {} tile {}) completed by worker '{}' ({}/{})",
+                     lease_id, task_id, job_id, task.frame, task.task_index, worker.name,
+                     frame_done, frame_total);
+        events.push_back({Event::kJob, job_id,
+                          fmt::format("task {} of frame {} done", task.task_index, task.frame)});
+        if (frame_done == frame_total) {
+            spdlog::info("job {} frame {}: all {} tasks done; assembling", job_id, task.frame,
+                         frame_total);
+            events.push_back({Event::kFrameReady, job_id, "", task.frame});
+        }
+    }
+    Emit(events);
+}
+
+void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                     const std::string& message) {
+    Events events;
+    {
+        std::lock_guard lock(mu_);
+        int64_t wid = 0;
+        Worker& worker = FindWorker(worker_id, &wid);
+        TaskRow task;
+        CurrentLease(task_id, lease_id, &task);
+        const std::string job_id = FormatJobId(task.job_id);
+        const std::string text = Truncate(message.empty() ? "(no message)" : message);
+        const int failures = task.failures + 1;
+        SqliteTransaction txn(store_.Db());
+        store_.RequeueTask(task_id, lease_id, true);
+        store_.InsertFailure(task.job_id,
+                             {task.frame, task.task_index, task.attempts, worker.name, text},
+                             clock_.NowMs());
+        leases_.erase(task_id);
+        spdlog::warn(
+            "lease {}: task {} ({} frame {} tile {}) failed on worker '{}' (failure {} of "
+            "{}): {}",
+            lease_id, task_id, job_id, task.frame, task.task_index, worker.name, failures,
+            options_.max_attempts, text);
+        events.push_back({Event::kJob, job_id,
+                          fmt::format("task {} of frame {} failed on {}: {}", task.task_index,
+                                      task.frame, worker.name, text)});
+        if (failures >= options_.max_attempts) {
+            std::string error =
+                fmt::format("task {} of frame {} failed {} times; last error on worker {}: {}",
+                            task.task_index, task.frame, failures, worker.name, text);
+            EndJob(task.job_id, v1::JOB_STATE_FAILED, error);
+            events.push_back({Event::kJob, job_id, "job failed: " + error});
+        } else {
+            events.push_back({Event::kWork, job_id, ""});
+        }
+        txn.Commit();
+    }
+    Emit(events);
+}
+
+void Scheduler::Release(int64_t task_id, int64_t lease_id) {
+    {
+        std::lock_guard lock(mu_);
+        auto it = leases_.find(task_id);
+        if (it == leases_.end() || it->second.lease_id != lease_id) return;
+        SqliteTransaction txn(store_.Db());
+        store_.ReleaseTask(task_id, lease_id, it->second.job_id);
+        txn.Commit();
+        spdlog::info("lease {}: task {} given back unused (the worker left)", lease_id, task_id);
+        leases_.erase(it);
+    }
+    Emit({{Event::kWork, "", ""}});
+}
+
+int Scheduler::Sweep() {
+    Events events;
+    int expired = 0;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t now = clock_.NowMs();
+        std::vector<int64_t> due;
+        for (const auto& [task_id, lease] : leases_)
+            if (lease.deadline_ms <= now) due.push_back(task_id);
+        if (!due.empty()) {
+            std::sort(due.begin(), due.end());
+            SqliteTransaction txn(store_.Db());
+            for (int64_t task_id : due) {
+                const Lease lease = leases_[task_id];
+                store_.RequeueTask(task_id, lease.lease_id, false);
+                leases_.erase(task_id);
+                const std::string job_id = FormatJobId(lease.job_id);
+                spdlog::warn("lease {}: task {} ({}) on worker '{}' expired; re-queued",
+                             lease.lease_id, task_id, job_id, WorkerName(lease.worker_id));
+                events.push_back({Event::kJob, job_id,
+                                  fmt::format("lease of task {} on {} expired; re-queued", task_id,
+                                              WorkerName(lease.worker_id))});
+            }
+            txn.Commit();
+            expired = static_cast<int>(due.size());
+            events.push_back({Event::kWork, "", ""});
+        }
+        // Idle workers wait in long polls of up to 30 s between calls.
+        const int64_t silence_ms = 3 * options_.lease_ms + 30000;
+        for (auto& [id, w] : workers_) {
+            if (!w.silent && now - w.last_seen_ms > silence_ms) {
+                w.silent = true;
+                spdlog::info("worker '{}' ({}) silent for {} s; presumed gone", w.name,
+                             FormatWorkerId(id), (now - w.last_seen_ms) / 1000);
+            }
+        }
+    }
+    Emit(events);
+    return expired;
+}
+
+void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
+    const JobInfo& info = Info(job_id);
+    store_.SetJobState(job_id, state, error, clock_.NowMs());
+    store_.DropTasks(info.first_task_id, info.first_task_id + info.tasks_total - 1);
+    if (state == v1::JOB_STATE_FAILED) store_.FailOpenFrames(job_id);
+    for (auto it = leases_.begin(); it != leases_.end();) {
+        if (it->second.job_id == job_id) {
+            spdlog::info("lease {}: task {} revoked ({} ended)", it->second.lease_id, it->first,
+                         FormatJobId(job_id));
+            it = leases_.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    spdlog::log(state == v1::JOB_STATE_FAILED ? spdlog::level::err : spdlog::level::info,
+                "job {} '{}' {}{}", FormatJobId(job_id), info.name,
+                state == v1::JOB_STATE_FAILED ? "failed: " : "cancelled", error);
+}
+
+std::string Scheduler::AddJob(const NewJob& job) {
+    std::string job_id;
+    {
+        std::lock_guard lock(mu_);
+        SqliteTransaction txn(store_.Db());
+        const int64_t id = store_.InsertJob(job, clock_.NowMs());
+        txn.Commit();
+        job_id = FormatJobId(id);
+        const int frames = job.frame_end - job.frame_start + 1;
+        spdlog::info("job {} '{}' submitted: frames {}..{}, {}x{}, {} spp, {} tasks, priority {}",
+                     job_id, job.name, job.frame_start, job.frame_end, job.settings.width,
+                     job.settings.height, job.settings.spp, int64_t(frames) * job.tasks_per_frame,
+                     job.priority);
+    }
+    Emit({{Event::kJob, job_id, "job queued"}, {Event::kWork, job_id, ""}});
+    return job_id;
+}
+
+v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
+    JobRow job = LoadJob(job_id);
+    v1::JobStatus s;
+    s.set_job_id(FormatJobId(job.id));
+    s.set_name(job.name);
+    s.set_state(static_cast<v1::JobState>(job.state));
+    s.set_priority(job.priority);
+    s.set_tasks_done(job.tasks_done);
+    s.set_tasks_total(job.tasks_total);
+    for (const FrameRow& f : store_.GetFrames(job_id)) {
+        v1::FrameStatus* fs = s.add_frames();
+        fs->set_frame(f.frame);
+        fs->set_state(static_cast<v1::FrameState>(f.state));
+        fs->set_tasks_done(f.tasks_done);
+        fs->set_tasks_total(f.tasks_total);
+        fs->set_exr_path(f.exr_path);
+    }
+    s.set_error(job.error);
+    for (const FailureRow& f : store_.RecentFailures(job_id, kMaxFailuresShown)) {
+        v1::TaskFailure* tf = s.add_failures();
+        tf->set_frame(f.frame);
+        tf->set_task_index(f.task_index);
+        tf->set_worker(f.worker);
+        tf->set_message(f.message);
+        tf->set_attempt(f.attempt);
+    }
+    s.set_submitted_unix_ms(job.submitted_ms);
+    s.set_finished_unix_ms(job.finished_ms);
+    s.set_width(job.settings.width);
+    s.set_height(job.settings.height);
+    s.set_spp(job.settings.spp);
+    s.set_leases_granted(job.leases_granted);
+    return s;
+}
+
+v1::JobStatus Scheduler::GetJob(const std::string& job_id) {
+    const int64_t id = ParseJobId(job_id);
+    std::lock_guard lock(mu_);
+    return BuildStatus(id);
+}
+
+std::vector<v1::JobStatus> Scheduler::ListJobs() {
+    std::lock_guard lock(mu_);
+    std::vector<v1::JobStatus> out;
+    for (int64_t id : store_.JobIds()) out.push_back(BuildStatus(id));
+    return out;
+}
+
+v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
+    const int64_t id = ParseJobId(job_id);
+    v1::JobStatus status;
+    {
+        std::lock_guard lock(mu_);
+        JobRow job = LoadJob(id);
+        if (IsFinished(job.state)) return BuildStatus(id);
+        SqliteTransaction txn(store_.Db());
+        EndJob(id, v1::JOB_STATE_CANCELLED, "");
+        txn.Commit();
+        status = BuildStatus(id);
+    }
+    Emit({{Event::kJob, job_id, "job cancelled"}});
+    return status;
+}
+
+FrameAssemblyInput Scheduler::GetAssemblyInput(const std::string& job_id, int frame) {
+    const int64_t id = ParseJobId(job_id);
+    std::lock_guard lock(mu_);
+    JobRow job = LoadJob(id);
+    std::optional<FrameRow> row = store_.GetFrame(id, frame);
+    if (!row) ThrowError(ErrorCode::kNotFound, fmt::format("{} has no frame {}", job_id, frame));
+    FrameAssemblyInput in;
+    in.job_id = job_id;
+    in.name = job.name;
+    in.frame = frame;
+    in.job_running = job.state == v1::JOB_STATE_RUNNING;
+    in.settings = job.settings;
+    in.started_ms = row->started_ms;
+    in.results = store_.FrameResults(*row);
+    return in;
+}
+
+void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::string& exr_path) {
+    const int64_t id = ParseJobId(job_id);
+    Events events;
+    {
+        std::lock_guard lock(mu_);
+        JobRow job = LoadJob(id);
+        SqliteTransaction txn(store_.Db());
+        store_.SetFrameDone(id, frame, exr_path);
+        const bool job_done =
+            job.state == v1::JOB_STATE_RUNNING && store_.CountFramesNotDone(id) == 0;
+        if (job_done) store_.SetJobState(id, v1::JOB_STATE_DONE, "", clock_.NowMs());
+        txn.Commit();
+        spdlog::info("job {} frame {} written: {}", job_id, frame, exr_path);
+        events.push_back({Event::kJob, job_id, fmt::format("frame {} done", frame)});
+        if (job_done) {
+            spdlog::info("job {} '{}' done", job_id, job.name);
+            events.push_back({Event::kJob, job_id, "job done"});
+        }
+    }
+    Emit(events);
+}
+
+void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame,
+                                 const std::vector<int>& indices) {
+    const int64_t id = ParseJobId(job_id);
+    {
+        std::lock_guard lock(mu_);
+        std::optional<FrameRow> row = store_.GetFrame(id, frame);
+        if (!row)
+            ThrowError(ErrorCode::kNotFound, fmt::format("{} has no frame {}", job_id, frame));
+        SqliteTransaction txn(store_.Db());
+        int requeued = 0;
+        for (int index : indices)
+            if (index >= 0 && index < row->tasks_total)
+                requeued += store_.RequeueDoneTask(row->first_task_id + index) ? 1 : 0;
+        store_.UncountTasksDone(id, frame, requeued);
+        txn.Commit();
+        spdlog::warn("job {} frame {}: {} finished task(s) re-queued", job_id, frame, requeued);
+    }
+    Emit({{Event::kJob, job_id, fmt::format("frame {}: unreadable tile results re-queued", frame)},
+          {Event::kWork, job_id, ""}});
+}
+
+void Scheduler::FailJob(const std::string& job_id, const std::string& message) {
+    const int64_t id = ParseJobId(job_id);
+    {
+        std::lock_guard lock(mu_);
+        JobRow job = LoadJob(id);
+        if (IsFinished(job.state)) return;
+        SqliteTransaction txn(store_.Db());
+        EndJob(id, v1::JOB_STATE_FAILED, message);
+        txn.Commit();
+    }
+    Emit({{Event::kJob, job_id, "job failed: " + message}});
+}
+
+std::vector<std::pair<std::string, int>> Scheduler::FramesAwaitingAssembly() {
+    std::lock_guard lock(mu_);
+    std::vector<std::pair<std::string, int>> out;
+    for (const auto& [job, frame] : store_.FramesAwaitingAssembly())
+        out.emplace_back(FormatJobId(job), frame);
+    return out;
+}
+
+std::string Scheduler::FrameExrPath(const std::string& job_id, int frame) {
+    const int64_t id = ParseJobId(job_id);
+    std::lock_guard lock(mu_);
+    LoadJob(id);
+    std::optional<FrameRow> row = store_.GetFrame(id, frame);
+    if (!row) ThrowError(ErrorCode::kNotFound, fmt::format("{} has no frame {}", job_id, frame));
+    if (row->state != v1::FRAME_STATE_DONE || row->exr_path.empty())
+        ThrowError(ErrorCode::kNotFound,
+                   fmt::format("frame {} of {} is not done yet", frame, job_id));
+    return row->exr_path;
+}
+
+}  // namespace tessera

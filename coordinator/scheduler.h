@@ -1,0 +1,204 @@
+#pragma once
+
+// The scheduler: jobs, tasks and leases over the durable Store. Plain C++ with an
+// injectable clock, so that leases, expiry, fencing, retries, priorities and
+// cancellation are tested without sockets or real time.
+//
+// - LeaseTask-style calls (TryLease) hand out the next pending task of the
+//   highest-priority job (priority desc, then submission, frame, task index) under a
+//   fresh, monotonic lease id with a deadline of now + lease_ms.
+// - Only the current lease may complete or fail a task (fencing); anything else is
+//   FAILED_PRECONDITION "stale lease ...".
+// - Heartbeats extend a lease; Sweep() re-queues leases past their deadline. Expiry is
+//   not a failure (a worker died or was cut off); FailTask is. A task that fails
+//   max_attempts times fails its job with the worker's message.
+// - Lease deadlines live in memory only (a heartbeat costs no disk write). After a
+//   restart every lease found in the database gets a fresh deadline of now + lease_ms:
+//   a worker that is still rendering may heartbeat and complete it; one that died
+//   loses it one lease period later.
+//
+// Every public call is one SQLite transaction, committed before it returns. Listener
+// callbacks run after the scheduler's lock is released.
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "clock.h"
+#include "film/film.h"
+#include "store.h"
+#include "tessera/v1/tessera.pb.h"
+
+namespace tessera {
+
+struct SchedulerOptions {
+    int64_t lease_ms = 10000;
+    int max_attempts = 3;
+};
+
+struct WorkerRegistration {
+    std::string worker_id;
+    int heartbeat_interval_ms = 0;
+    int lease_duration_ms = 0;
+};
+
+struct LeasedTask {
+    int64_t task_id = 0;
+    int64_t lease_id = 0;
+    std::string job_id;
+    int frame = 0;
+    std::string stage;
+    int task_index = 0;
+    int attempt = 0;  // 1 for the first lease of the task
+    std::shared_ptr<const v1::JobSpec> spec;
+    int64_t deadline_ms = 0;
+};
+
+struct HeartbeatReply {
+    bool lease_valid = false;
+    bool cancelled = false;
+};
+
+// What checking a task's result against its plan needs.
+struct LeaseCheck {
+    std::string job_id;
+    int frame = 0;
+    int task_index = 0;
+    PixelBounds tile;
+    Vec2i resolution;
+};
+
+struct FrameAssemblyInput {
+    std::string job_id;
+    std::string name;
+    int frame = 0;
+    bool job_running = false;
+    JobSettings settings;
+    int64_t started_ms = 0;
+    std::vector<std::pair<int, std::string>> results;  // (task index, blob), task order
+};
+
+class SchedulerListener {
+  public:
+    virtual ~SchedulerListener() = default;
+    // Tasks became pending (submission, re-queue, expiry).
+    virtual void OnWorkAvailable() {}
+    // Anything in the job's status changed; `message` says what.
+    virtual void OnJobChanged(const std::string& /*job_id*/, const std::string& /*message*/) {}
+    // Every task of the frame is done: it can be assembled.
+    virtual void OnFrameReady(const std::string& /*job_id*/, int /*frame*/) {}
+};
+
+std::string FormatJobId(int64_t id);
+// INVALID_ARGUMENT for a malformed id.
+int64_t ParseJobId(const std::string& job_id);
+
+class Scheduler {
+  public:
+    // Opens (or creates) the database and recovers: outstanding leases get a fresh
+    // deadline. Throws std::runtime_error if the database cannot be opened.
+    Scheduler(const std::string& db_path, const SchedulerOptions& options, const Clock& clock);
+
+    // The listener must outlive the scheduler's use; set it before serving.
+    void SetListener(SchedulerListener* listener) { listener_ = listener; }
+    const SchedulerOptions& Options() const { return options_; }
+
+    // --- workers
+    WorkerRegistration RegisterWorker(const std::string& name, int threads);
+    // NOT_FOUND for an unknown worker; nullopt when nothing is pending.
+    std::optional<LeasedTask> TryLease(const std::string& worker_id);
+    HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id);
+    // Verifies that `lease_id` is the task's current lease (see Complete) and returns
+    // what is needed to check the result before completing.
+    LeaseCheck CheckLease(int64_t task_id, int64_t lease_id);
+    // NOT_FOUND: unknown worker or task; FAILED_PRECONDITION: not the current lease.
+    void Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                  const std::string& result_hash);
+    void Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+              const std::string& message);
+    // Gives back a lease that never reached its worker: re-queued and not counted.
+    void Release(int64_t task_id, int64_t lease_id);
+    // Re-queues expired leases and notes silent workers; returns leases expired.
+    int Sweep();
+    // Moves the database's WAL into its main file without holding up requests.
+    void Checkpoint() { store_.Checkpoint(); }
+
+    // --- jobs
+    std::string AddJob(const NewJob& job);
+    // NOT_FOUND for an unknown job.
+    v1::JobStatus GetJob(const std::string& job_id);
+    std::vector<v1::JobStatus> ListJobs();
+    // Cancels a queued or running job (its leases are revoked); a finished job is left
+    // as it is. Returns the status after.
+    v1::JobStatus Cancel(const std::string& job_id);
+
+    // --- assembly
+    FrameAssemblyInput GetAssemblyInput(const std::string& job_id, int frame);
+    void FrameWritten(const std::string& job_id, int frame, const std::string& exr_path);
+    // Sends done tasks of a frame back to the queue: their results could not be read
+    // back at assembly. They are leased and rendered again like new.
+    void RequeueDoneTasks(const std::string& job_id, int frame, const std::vector<int>& indices);
+    // Fails a job that is not finished yet (e.g. its frame could not be written).
+    void FailJob(const std::string& job_id, const std::string& message);
+    // Frames whose tasks are all done but that were never written (a crash came first).
+    std::vector<std::pair<std::string, int>> FramesAwaitingAssembly();
+    // DONE frame's EXR path; NOT_FOUND otherwise.
+    std::string FrameExrPath(const std::string& job_id, int frame);
+
+  private:
+    struct Lease {
+        int64_t lease_id = 0;
+        int64_t worker_id = 0;
+        int64_t job_id = 0;
+        int64_t deadline_ms = 0;
+    };
+    struct Worker {
+        std::string name;
+        int threads = 0;
+        int64_t last_seen_ms = 0;
+        bool silent = false;
+    };
+    // Immutable facts of a job, cached after first use.
+    struct JobInfo {
+        std::shared_ptr<const v1::JobSpec> spec;
+        std::string name;
+        std::vector<PixelBounds> tiles;
+        Vec2i resolution;
+        int64_t first_task_id = 0;
+        int tasks_total = 0;
+    };
+    struct Event {
+        enum Kind { kWork, kJob, kFrameReady } kind;
+        std::string job_id;
+        std::string message;
+        int frame = 0;
+    };
+    using Events = std::vector<Event>;
+
+    void Emit(const Events& events);
+    Worker& FindWorker(const std::string& worker_id, int64_t* id);
+    const JobInfo& Info(int64_t job_id);
+    JobRow LoadJob(int64_t job_id);
+    const Lease& CurrentLease(int64_t task_id, int64_t lease_id, TaskRow* task);
+    std::string WorkerName(int64_t worker_id) const;
+    // Inside a transaction: the job becomes FAILED or CANCELLED, its tasks are dropped
+    // and its leases revoked.
+    void EndJob(int64_t job_id, int state, const std::string& error);
+    v1::JobStatus BuildStatus(int64_t job_id);
+
+    std::mutex mu_;
+    const Clock& clock_;
+    SchedulerOptions options_;
+    Store store_;
+    SchedulerListener* listener_ = nullptr;
+    int64_t last_lease_id_ = 0;
+    std::unordered_map<int64_t, Lease> leases_;  // by task id: the outstanding leases
+    std::unordered_map<int64_t, Worker> workers_;
+    std::unordered_map<int64_t, std::shared_ptr<const JobInfo>> jobs_;
+};
+
+}  // namespace tessera

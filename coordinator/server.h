@@ -1,0 +1,26 @@
+#pragma once
+
+// The coordinator process: opens the state, serves Farm, Workers, BlobStore and gRPC
+// health checking on one port, and shuts down gracefully on SIGTERM or SIGINT.
+
+#include <string>
+
+#include "coordinator.h"
+
+namespace tessera {
+
+struct ServerOptions {
+    std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
+    std::string port_file;  // if set, receives the bound port (atomically) once serving
+    CoordinatorOptions coordinator;
+};
+
+// Blocks SIGTERM and SIGINT in the calling thread (and so in every thread started after
+// it); RunServer waits for them. Call first thing in main().
+void BlockShutdownSignals();
+
+// Serves until SIGTERM/SIGINT; returns the process exit code (non-zero, with a logged
+// reason, if the state cannot be opened or the address cannot be bound).
+int RunServer(const ServerOptions& options);
+
+}  // namespace tessera

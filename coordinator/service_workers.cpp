@@ -1,0 +1,117 @@
+// Workers service adapter: registration, long-poll leases, heartbeats, results.
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+
+#include "grpc_status.h"
+#include "services.h"
+#include "tessera/v1/tessera.grpc.pb.h"
+
+namespace tessera {
+namespace {
+
+void ToProto(const LeasedTask& t, v1::Task* out) {
+    out->set_task_id(t.task_id);
+    out->set_lease_id(t.lease_id);
+    out->set_job_id(t.job_id);
+    out->set_frame(t.frame);
+    out->set_stage(t.stage);
+    out->set_task_index(t.task_index);
+    *out->mutable_spec() = *t.spec;
+    out->set_attempt(t.attempt);
+}
+
+// A long poll: parked in the coordinator's dispatcher until a task is leased to it,
+// its wait runs out, or the client goes away; no gRPC thread waits meanwhile.
+class LeaseReactor final : public grpc::ServerUnaryReactor {
+  public:
+    LeaseReactor(Coordinator& c, const v1::LeaseTaskRequest& req, v1::LeaseTaskResponse* resp)
+        : c_(c), resp_(resp) {
+        handle_ = c_.LeaseTask(req.worker_id(), req.wait_ms(),
+                               [this](std::optional<LeasedTask> task, std::exception_ptr error) {
+                                   if (error) {
+                                       Finish(ExceptionStatus(error));
+                                       return;
+                                   }
+                                   if (task) ToProto(*task, resp_->mutable_task());
+                                   Finish(grpc::Status::OK);
+                               });
+    }
+    void OnCancel() override {
+        if (handle_) c_.CancelLeaseWait(handle_);
+    }
+    void OnDone() override { delete this; }
+
+  private:
+    Coordinator& c_;
+    v1::LeaseTaskResponse* resp_;
+    uint64_t handle_ = 0;
+};
+
+class WorkersService final : public v1::Workers::CallbackService {
+  public:
+    explicit WorkersService(Coordinator& c) : c_(c) {}
+
+    grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx,
+                                       const v1::RegisterRequest* req,
+                                       v1::RegisterResponse* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        reactor->Finish(Guarded([&] {
+            WorkerRegistration r = c_.Register(req->name(), req->threads());
+            resp->set_worker_id(r.worker_id);
+            resp->set_heartbeat_interval_ms(r.heartbeat_interval_ms);
+            resp->set_lease_duration_ms(r.lease_duration_ms);
+        }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* LeaseTask(grpc::CallbackServerContext*,
+                                        const v1::LeaseTaskRequest* req,
+                                        v1::LeaseTaskResponse* resp) override {
+        return new LeaseReactor(c_, *req, resp);
+    }
+
+    grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx,
+                                        const v1::HeartbeatRequest* req,
+                                        v1::HeartbeatResponse* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        reactor->Finish(Guarded([&] {
+            HeartbeatReply r = c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id());
+            resp->set_lease_valid(r.lease_valid);
+            resp->set_cancelled(r.cancelled);
+        }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* CompleteTask(grpc::CallbackServerContext* ctx,
+                                           const v1::CompleteTaskRequest* req,
+                                           v1::CompleteTaskResponse*) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        reactor->Finish(Guarded([&] {
+            c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->result_hash());
+        }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* FailTask(grpc::CallbackServerContext* ctx,
+                                       const v1::FailTaskRequest* req,
+                                       v1::FailTaskResponse*) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        reactor->Finish(Guarded([&] {
+            c_.FailTask(req->worker_id(), req->task_id(), req->lease_id(), req->message());
+        }));
+        return reactor;
+    }
+
+  private:
+    Coordinator& c_;
+};
+
+}  // namespace
+
+std::unique_ptr<grpc::Service> MakeWorkersService(Coordinator& coordinator) {
+    return std::make_unique<WorkersService>(coordinator);
+}
+
+}  // namespace tessera

@@ -1,0 +1,484 @@
+#include "store.h"
+
+#include "tessera/v1/tessera.pb.h"
+
+namespace tessera {
+
+namespace {
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS jobs(
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL,
+  state INTEGER NOT NULL,
+  priority INTEGER NOT NULL,
+  spec BLOB NOT NULL,
+  frame_start INTEGER NOT NULL,
+  frame_end INTEGER NOT NULL,
+  first_task_id INTEGER NOT NULL,
+  tasks_per_frame INTEGER NOT NULL,
+  tasks_total INTEGER NOT NULL,
+  tasks_done INTEGER NOT NULL DEFAULT 0,
+  leases_granted INTEGER NOT NULL DEFAULT 0,
+  error TEXT NOT NULL DEFAULT '',
+  submitted_ms INTEGER NOT NULL,
+  started_ms INTEGER NOT NULL DEFAULT 0,
+  finished_ms INTEGER NOT NULL DEFAULT 0,
+  width INTEGER NOT NULL, height INTEGER NOT NULL, spp INTEGER NOT NULL,
+  max_depth INTEGER NOT NULL, tile_size INTEGER NOT NULL, seed INTEGER NOT NULL,
+  integrator TEXT NOT NULL, sampler TEXT NOT NULL, scene_name TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS frames(
+  job_id INTEGER NOT NULL,
+  frame INTEGER NOT NULL,
+  state INTEGER NOT NULL,
+  tasks_total INTEGER NOT NULL,
+  tasks_done INTEGER NOT NULL DEFAULT 0,
+  first_task_id INTEGER NOT NULL,
+  started_ms INTEGER NOT NULL DEFAULT 0,
+  exr_path TEXT NOT NULL DEFAULT '',
+  PRIMARY KEY(job_id, frame)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS stages(
+  job_id INTEGER NOT NULL,
+  frame INTEGER NOT NULL,
+  stage TEXT NOT NULL,
+  num_tasks INTEGER NOT NULL,
+  PRIMARY KEY(job_id, frame, stage)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS tasks(
+  id INTEGER PRIMARY KEY,
+  job_id INTEGER NOT NULL,
+  frame INTEGER NOT NULL,
+  stage TEXT NOT NULL,
+  task_index INTEGER NOT NULL,
+  priority INTEGER NOT NULL,
+  state INTEGER NOT NULL DEFAULT 0,
+  attempts INTEGER NOT NULL DEFAULT 0,
+  failures INTEGER NOT NULL DEFAULT 0,
+  lease_id INTEGER NOT NULL DEFAULT 0,
+  worker_id INTEGER NOT NULL DEFAULT 0,
+  result_hash TEXT NOT NULL DEFAULT '',
+  completions INTEGER NOT NULL DEFAULT 0);
+CREATE INDEX IF NOT EXISTS tasks_pending ON tasks(priority DESC, id) WHERE state = 0;
+CREATE INDEX IF NOT EXISTS tasks_leased ON tasks(id) WHERE state = 1;
+CREATE TABLE IF NOT EXISTS failures(
+  id INTEGER PRIMARY KEY,
+  job_id INTEGER NOT NULL,
+  frame INTEGER NOT NULL,
+  task_index INTEGER NOT NULL,
+  worker TEXT NOT NULL,
+  message TEXT NOT NULL,
+  attempt INTEGER NOT NULL,
+  at_ms INTEGER NOT NULL);
+CREATE INDEX IF NOT EXISTS failures_by_job ON failures(job_id, id);
+CREATE TABLE IF NOT EXISTS workers(
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  name TEXT NOT NULL,
+  threads INTEGER NOT NULL,
+  registered_ms INTEGER NOT NULL);
+)sql";
+
+constexpr const char* kJobColumns =
+    "id, name, state, priority, frame_start, frame_end, first_task_id, tasks_per_frame, "
+    "tasks_total, tasks_done, leases_granted, error, submitted_ms, started_ms, finished_ms, "
+    "width, height, spp, max_depth, tile_size, seed, integrator, sampler, scene_name";
+constexpr const char* kTaskColumns =
+    "id, job_id, frame, stage, task_index, state, attempts, failures, lease_id, worker_id, "
+    "result_hash, completions";
+constexpr const char* kFrameColumns =
+    "frame, state, tasks_total, tasks_done, first_task_id, started_ms, exr_path";
+
+std::string Sql(const char* head, const char* columns, const char* tail) {
+    return std::string(head) + columns + tail;
+}
+
+}  // namespace
+
+Store::Store(const std::string& path) : path_(path), db_(path) {
+    db_.Exec("PRAGMA journal_mode=WAL");
+    db_.Exec("PRAGMA synchronous=NORMAL");
+    // Checkpoint() normally keeps the WAL short; this is only the fallback.
+    db_.Exec("PRAGMA wal_autocheckpoint=20000");
+    db_.Exec("PRAGMA foreign_keys=OFF");
+    db_.Exec(kSchema);
+
+    get_meta_ = db_.Prepare("SELECT value FROM meta WHERE key = ?1");
+    set_meta_ = db_.Prepare(
+        "INSERT INTO meta(key, value) VALUES(?1, ?2) "
+        "ON CONFLICT(key) DO UPDATE SET value = excluded.value");
+
+    insert_job_ = db_.Prepare(
+        "INSERT INTO jobs(name, state, priority, spec, frame_start, frame_end, first_task_id, "
+        "tasks_per_frame, tasks_total, submitted_ms, width, height, spp, max_depth, tile_size, "
+        "seed, integrator, sampler, scene_name) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, "
+        "?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)");
+    insert_frame_ = db_.Prepare(
+        "INSERT INTO frames(job_id, frame, state, tasks_total, first_task_id) "
+        "VALUES(?1, ?2, ?3, ?4, ?5)");
+    insert_stage_ =
+        db_.Prepare("INSERT INTO stages(job_id, frame, stage, num_tasks) VALUES(?1, ?2, ?3, ?4)");
+    insert_task_ = db_.Prepare(
+        "INSERT INTO tasks(id, job_id, frame, stage, task_index, priority) "
+        "VALUES(?1, ?2, ?3, ?4, ?5, ?6)");
+    max_task_id_ = db_.Prepare("SELECT COALESCE(MAX(id), 0) FROM tasks");
+
+    get_job_ = db_.Prepare(Sql("SELECT ", kJobColumns, " FROM jobs WHERE id = ?1"));
+    get_job_spec_ = db_.Prepare("SELECT spec FROM jobs WHERE id = ?1");
+    job_ids_ = db_.Prepare("SELECT id FROM jobs ORDER BY id");
+    set_job_state_ =
+        db_.Prepare("UPDATE jobs SET state = ?2, error = ?3, finished_ms = ?4 WHERE id = ?1");
+    count_lease_ = db_.Prepare(
+        "UPDATE jobs SET leases_granted = leases_granted + 1, "
+        "state = CASE WHEN state = ?3 THEN ?4 ELSE state END, "
+        "started_ms = CASE WHEN started_ms = 0 THEN ?2 ELSE started_ms END WHERE id = ?1");
+    count_task_done_ = db_.Prepare("UPDATE jobs SET tasks_done = tasks_done + 1 WHERE id = ?1");
+    job_state_ = db_.Prepare("SELECT state FROM jobs WHERE id = ?1");
+    uncount_lease_ =
+        db_.Prepare("UPDATE jobs SET leases_granted = leases_granted - 1 WHERE id = ?1");
+
+    get_frames_ =
+        db_.Prepare(Sql("SELECT ", kFrameColumns, " FROM frames WHERE job_id = ?1 ORDER BY frame"));
+    get_frame_ =
+        db_.Prepare(Sql("SELECT ", kFrameColumns, " FROM frames WHERE job_id = ?1 AND frame = ?2"));
+    frame_rendering_ = db_.Prepare(
+        "UPDATE frames SET state = ?4, started_ms = ?3 "
+        "WHERE job_id = ?1 AND frame = ?2 AND state = ?5");
+    frame_task_done_ = db_.Prepare(
+        "UPDATE frames SET tasks_done = tasks_done + 1 WHERE job_id = ?1 AND frame = ?2 "
+        "RETURNING tasks_done");
+    frame_done_ =
+        db_.Prepare("UPDATE frames SET state = ?3, exr_path = ?4 WHERE job_id = ?1 AND frame = ?2");
+    fail_open_frames_ =
+        db_.Prepare("UPDATE frames SET state = ?2 WHERE job_id = ?1 AND state <> ?3");
+    frames_not_done_ = db_.Prepare("SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state <> ?2");
+    frames_awaiting_ = db_.Prepare(
+        "SELECT f.job_id, f.frame FROM frames f JOIN jobs j ON j.id = f.job_id "
+        "WHERE j.state = ?1 AND f.state <> ?2 AND f.tasks_done = f.tasks_total "
+        "ORDER BY f.job_id, f.frame");
+
+    next_pending_ = db_.Prepare(Sql("SELECT ", kTaskColumns,
+                                    " FROM tasks WHERE state = 0 ORDER BY priority DESC, id "
+                                    "LIMIT 1"));
+    get_task_ = db_.Prepare(Sql("SELECT ", kTaskColumns, " FROM tasks WHERE id = ?1"));
+    lease_task_ = db_.Prepare(
+        "UPDATE tasks SET state = 1, lease_id = ?2, worker_id = ?3, attempts = attempts + 1 "
+        "WHERE id = ?1 AND state = 0");
+    complete_task_ = db_.Prepare(
+        "UPDATE tasks SET state = 2, result_hash = ?3, completions = completions + 1 "
+        "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
+    requeue_task_ = db_.Prepare(
+        "UPDATE tasks SET state = 0, failures = failures + ?3 "
+        "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
+    release_task_ = db_.Prepare(
+        "UPDATE tasks SET state = 0, attempts = attempts - 1 "
+        "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
+    requeue_done_ =
+        db_.Prepare("UPDATE tasks SET state = 0, result_hash = '' WHERE id = ?1 AND state = 2");
+    uncount_frame_done_ = db_.Prepare(
+        "UPDATE frames SET tasks_done = tasks_done - ?3 WHERE job_id = ?1 AND frame = ?2");
+    uncount_job_done_ = db_.Prepare("UPDATE jobs SET tasks_done = tasks_done - ?2 WHERE id = ?1");
+    drop_tasks_ =
+        db_.Prepare("UPDATE tasks SET state = 3 WHERE id BETWEEN ?1 AND ?2 AND state IN (0, 1)");
+    leased_tasks_ = db_.Prepare(Sql("SELECT ", kTaskColumns, " FROM tasks WHERE state = 1"));
+    frame_results_ = db_.Prepare(
+        "SELECT task_index, result_hash FROM tasks WHERE id BETWEEN ?1 AND ?2 ORDER BY id");
+
+    insert_failure_ = db_.Prepare(
+        "INSERT INTO failures(job_id, frame, task_index, worker, message, attempt, at_ms) "
+        "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+    recent_failures_ = db_.Prepare(
+        "SELECT frame, task_index, attempt, worker, message FROM failures "
+        "WHERE job_id = ?1 ORDER BY id DESC LIMIT ?2");
+    insert_worker_ =
+        db_.Prepare("INSERT INTO workers(name, threads, registered_ms) VALUES(?1, ?2, ?3)");
+    workers_ = db_.Prepare("SELECT id, name, threads FROM workers ORDER BY id");
+}
+
+void Store::Checkpoint() {
+    if (!checkpoint_db_) {
+        checkpoint_db_ = std::make_unique<SqliteDb>(path_);
+        checkpoint_db_->Exec("PRAGMA synchronous=NORMAL");
+    }
+    checkpoint_db_->Exec("PRAGMA wal_checkpoint(PASSIVE)");
+}
+
+int64_t Store::GetMeta(const std::string& key, int64_t fallback) {
+    get_meta_.Bind(key);
+    int64_t value = get_meta_.Step() ? get_meta_.Int(0) : fallback;
+    get_meta_.Reset();
+    return value;
+}
+
+void Store::SetMeta(const std::string& key, int64_t value) { set_meta_.Bind(key, value).Run(); }
+
+int64_t Store::InsertJob(const NewJob& job, int64_t now_ms) {
+    max_task_id_.Bind();
+    max_task_id_.Step();
+    const int64_t first_task = max_task_id_.Int(0) + 1;
+    max_task_id_.Reset();
+    const int frames = job.frame_end - job.frame_start + 1;
+    const JobSettings& s = job.settings;
+    insert_job_
+        .Bind(job.name, int(v1::JOB_STATE_QUEUED), job.priority, SqliteBlobArg{job.spec},
+              job.frame_start, job.frame_end, first_task, job.tasks_per_frame,
+              int64_t(frames) * job.tasks_per_frame, now_ms, s.width, s.height, s.spp, s.max_depth,
+              s.tile_size, s.seed, s.integrator, s.sampler, s.scene_name)
+        .Run();
+    const int64_t job_id = db_.LastInsertRowid();
+    int64_t task_id = first_task;
+    for (int f = job.frame_start; f <= job.frame_end; ++f) {
+        insert_frame_.Bind(job_id, f, int(v1::FRAME_STATE_PENDING), job.tasks_per_frame, task_id)
+            .Run();
+        insert_stage_.Bind(job_id, f, "render", job.tasks_per_frame).Run();
+        for (int i = 0; i < job.tasks_per_frame; ++i)
+            insert_task_.Bind(task_id++, job_id, f, "render", i, job.priority).Run();
+    }
+    return job_id;
+}
+
+std::optional<JobRow> Store::GetJob(int64_t job_id) {
+    get_job_.Bind(job_id);
+    if (!get_job_.Step()) return std::nullopt;
+    const SqliteStatement& s = get_job_;
+    JobRow j;
+    j.id = s.Int(0);
+    j.name = s.Text(1);
+    j.state = int(s.Int(2));
+    j.priority = int(s.Int(3));
+    j.frame_start = int(s.Int(4));
+    j.frame_end = int(s.Int(5));
+    j.first_task_id = s.Int(6);
+    j.tasks_per_frame = int(s.Int(7));
+    j.tasks_total = int(s.Int(8));
+    j.tasks_done = int(s.Int(9));
+    j.leases_granted = s.Int(10);
+    j.error = s.Text(11);
+    j.submitted_ms = s.Int(12);
+    j.started_ms = s.Int(13);
+    j.finished_ms = s.Int(14);
+    j.settings.width = int(s.Int(15));
+    j.settings.height = int(s.Int(16));
+    j.settings.spp = int(s.Int(17));
+    j.settings.max_depth = int(s.Int(18));
+    j.settings.tile_size = int(s.Int(19));
+    j.settings.seed = static_cast<uint64_t>(s.Int(20));
+    j.settings.integrator = s.Text(21);
+    j.settings.sampler = s.Text(22);
+    j.settings.scene_name = s.Text(23);
+    get_job_.Reset();
+    return j;
+}
+
+std::string Store::GetJobSpec(int64_t job_id) {
+    get_job_spec_.Bind(job_id);
+    std::string spec = get_job_spec_.Step() ? get_job_spec_.Blob(0) : std::string();
+    get_job_spec_.Reset();
+    return spec;
+}
+
+std::vector<int64_t> Store::JobIds() {
+    std::vector<int64_t> ids;
+    job_ids_.Bind();
+    while (job_ids_.Step()) ids.push_back(job_ids_.Int(0));
+    return ids;
+}
+
+void Store::SetJobState(int64_t job_id, int state, const std::string& error, int64_t finished_ms) {
+    set_job_state_.Bind(job_id, state, error, finished_ms).Run();
+}
+
+void Store::CountLease(int64_t job_id, int64_t now_ms) {
+    count_lease_.Bind(job_id, now_ms, int(v1::JOB_STATE_QUEUED), int(v1::JOB_STATE_RUNNING)).Run();
+}
+
+void Store::CountTaskDone(int64_t job_id) { count_task_done_.Bind(job_id).Run(); }
+
+std::optional<int> Store::JobState(int64_t job_id) {
+    job_state_.Bind(job_id);
+    if (!job_state_.Step()) return std::nullopt;
+    int state = int(job_state_.Int(0));
+    job_state_.Reset();
+    return state;
+}
+
+FrameRow Store::ReadFrame(const SqliteStatement& s) const {
+    FrameRow f;
+    f.frame = int(s.Int(0));
+    f.state = int(s.Int(1));
+    f.tasks_total = int(s.Int(2));
+    f.tasks_done = int(s.Int(3));
+    f.first_task_id = s.Int(4);
+    f.started_ms = s.Int(5);
+    f.exr_path = s.Text(6);
+    return f;
+}
+
+std::vector<FrameRow> Store::GetFrames(int64_t job_id) {
+    std::vector<FrameRow> frames;
+    get_frames_.Bind(job_id);
+    while (get_frames_.Step()) frames.push_back(ReadFrame(get_frames_));
+    return frames;
+}
+
+std::optional<FrameRow> Store::GetFrame(int64_t job_id, int frame) {
+    get_frame_.Bind(job_id, frame);
+    if (!get_frame_.Step()) return std::nullopt;
+    FrameRow f = ReadFrame(get_frame_);
+    get_frame_.Reset();
+    return f;
+}
+
+void Store::MarkFrameRendering(int64_t job_id, int frame, int64_t now_ms) {
+    frame_rendering_
+        .Bind(job_id, frame, now_ms, int(v1::FRAME_STATE_RENDERING), int(v1::FRAME_STATE_PENDING))
+        .Run();
+}
+
+int Store::CountFrameTaskDone(int64_t job_id, int frame) {
+    frame_task_done_.Bind(job_id, frame);
+    int done = frame_task_done_.Step() ? int(frame_task_done_.Int(0)) : 0;
+    frame_task_done_.Reset();
+    return done;
+}
+
+void Store::SetFrameDone(int64_t job_id, int frame, const std::string& exr_path) {
+    frame_done_.Bind(job_id, frame, int(v1::FRAME_STATE_DONE), exr_path).Run();
+}
+
+void Store::FailOpenFrames(int64_t job_id) {
+    fail_open_frames_.Bind(job_id, int(v1::FRAME_STATE_FAILED), int(v1::FRAME_STATE_DONE)).Run();
+}
+
+int Store::CountFramesNotDone(int64_t job_id) {
+    frames_not_done_.Bind(job_id, int(v1::FRAME_STATE_DONE));
+    frames_not_done_.Step();
+    int n = int(frames_not_done_.Int(0));
+    frames_not_done_.Reset();
+    return n;
+}
+
+std::vector<std::pair<int64_t, int>> Store::FramesAwaitingAssembly() {
+    std::vector<std::pair<int64_t, int>> out;
+    frames_awaiting_.Bind(int(v1::JOB_STATE_RUNNING), int(v1::FRAME_STATE_DONE));
+    while (frames_awaiting_.Step())
+        out.emplace_back(frames_awaiting_.Int(0), int(frames_awaiting_.Int(1)));
+    return out;
+}
+
+TaskRow Store::ReadTask(const SqliteStatement& s) const {
+    TaskRow t;
+    t.id = s.Int(0);
+    t.job_id = s.Int(1);
+    t.frame = int(s.Int(2));
+    t.stage = s.Text(3);
+    t.task_index = int(s.Int(4));
+    t.state = static_cast<TaskState>(s.Int(5));
+    t.attempts = int(s.Int(6));
+    t.failures = int(s.Int(7));
+    t.lease_id = s.Int(8);
+    t.worker_id = s.Int(9);
+    t.result_hash = s.Text(10);
+    t.completions = int(s.Int(11));
+    return t;
+}
+
+std::optional<TaskRow> Store::NextPendingTask() {
+    next_pending_.Bind();
+    if (!next_pending_.Step()) return std::nullopt;
+    TaskRow t = ReadTask(next_pending_);
+    next_pending_.Reset();
+    return t;
+}
+
+std::optional<TaskRow> Store::GetTask(int64_t task_id) {
+    get_task_.Bind(task_id);
+    if (!get_task_.Step()) return std::nullopt;
+    TaskRow t = ReadTask(get_task_);
+    get_task_.Reset();
+    return t;
+}
+
+void Store::LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id) {
+    lease_task_.Bind(task_id, lease_id, worker_id).Run();
+}
+
+bool Store::CompleteTask(int64_t task_id, int64_t lease_id, const std::string& result_hash) {
+    complete_task_.Bind(task_id, lease_id, result_hash).Run();
+    return db_.Changes() == 1;
+}
+
+bool Store::RequeueTask(int64_t task_id, int64_t lease_id, bool count_failure) {
+    requeue_task_.Bind(task_id, lease_id, count_failure ? 1 : 0).Run();
+    return db_.Changes() == 1;
+}
+
+bool Store::ReleaseTask(int64_t task_id, int64_t lease_id, int64_t job_id) {
+    release_task_.Bind(task_id, lease_id).Run();
+    if (db_.Changes() != 1) return false;
+    uncount_lease_.Bind(job_id).Run();
+    return true;
+}
+
+bool Store::RequeueDoneTask(int64_t task_id) {
+    requeue_done_.Bind(task_id).Run();
+    return db_.Changes() == 1;
+}
+
+void Store::UncountTasksDone(int64_t job_id, int frame, int n) {
+    uncount_frame_done_.Bind(job_id, frame, n).Run();
+    uncount_job_done_.Bind(job_id, n).Run();
+}
+
+void Store::DropTasks(int64_t first_task_id, int64_t last_task_id) {
+    drop_tasks_.Bind(first_task_id, last_task_id).Run();
+}
+
+std::vector<TaskRow> Store::LeasedTasks() {
+    std::vector<TaskRow> tasks;
+    leased_tasks_.Bind();
+    while (leased_tasks_.Step()) tasks.push_back(ReadTask(leased_tasks_));
+    return tasks;
+}
+
+std::vector<std::pair<int, std::string>> Store::FrameResults(const FrameRow& frame) {
+    std::vector<std::pair<int, std::string>> out;
+    out.reserve(frame.tasks_total);
+    frame_results_.Bind(frame.first_task_id, frame.first_task_id + frame.tasks_total - 1);
+    while (frame_results_.Step())
+        out.emplace_back(int(frame_results_.Int(0)), frame_results_.Text(1));
+    return out;
+}
+
+void Store::InsertFailure(int64_t job_id, const FailureRow& f, int64_t now_ms) {
+    insert_failure_.Bind(job_id, f.frame, f.task_index, f.worker, f.message, f.attempt, now_ms)
+        .Run();
+}
+
+std::vector<FailureRow> Store::RecentFailures(int64_t job_id, int limit) {
+    std::vector<FailureRow> out;
+    recent_failures_.Bind(job_id, limit);
+    while (recent_failures_.Step()) {
+        FailureRow f;
+        f.frame = int(recent_failures_.Int(0));
+        f.task_index = int(recent_failures_.Int(1));
+        f.attempt = int(recent_failures_.Int(2));
+        f.worker = recent_failures_.Text(3);
+        f.message = recent_failures_.Text(4);
+        out.push_back(std::move(f));
+    }
+    return out;
+}
+
+int64_t Store::InsertWorker(const std::string& name, int threads, int64_t now_ms) {
+    insert_worker_.Bind(name, threads, now_ms).Run();
+    return db_.LastInsertRowid();
+}
+
+std::vector<WorkerRow> Store::Workers() {
+    std::vector<WorkerRow> out;
+    workers_.Bind();
+    while (workers_.Step())
+        out.push_back({workers_.Int(0), workers_.Text(1), int(workers_.Int(2))});
+    return out;
+}
+
+}  // namespace tessera

@@ -1,0 +1,179 @@
+#pragma once
+
+// The coordinator's durable state in one SQLite database (WAL): jobs, their frames and
+// stages, one row per task (with its current lease), task failures and workers. Typed
+// queries over prepared statements; the caller (the scheduler) serialises access and
+// groups statements into transactions, so every acknowledged change is one commit.
+//
+// Task ids are allocated contiguously per job, frame by frame, tile by tile: a frame's
+// tasks are the id range [first_task_id, first_task_id + tasks_total), and id order is
+// (job, frame, task index) order. The pending queue is a partial index over
+// (priority DESC, id), so picking the next task is one index lookup however many
+// tasks are queued.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sqlite_db.h"
+
+namespace tessera {
+
+enum class TaskState : int { kPending = 0, kLeased = 1, kDone = 2, kDropped = 3 };
+
+// Settings resolved at submission (scene file + overrides): what assembly, result
+// checks and the status need, so that nothing has to load the scene again.
+struct JobSettings {
+    int width = 0, height = 0;
+    int spp = 0, max_depth = 0, tile_size = 0;
+    uint64_t seed = 0;
+    std::string integrator, sampler;
+    std::string scene_name;  // the scene file's name, for the EXR header
+};
+
+struct NewJob {
+    std::string name;
+    int priority = 0;
+    std::string spec;  // the serialized v1::JobSpec
+    JobSettings settings;
+    int frame_start = 0, frame_end = 0;
+    int tasks_per_frame = 0;  // tiles of the render stage
+};
+
+struct JobRow {
+    int64_t id = 0;
+    std::string name;
+    int state = 0;  // v1::JobState
+    int priority = 0;
+    int frame_start = 0, frame_end = 0;
+    int64_t first_task_id = 0;
+    int tasks_per_frame = 0;
+    int tasks_total = 0, tasks_done = 0;
+    int64_t leases_granted = 0;
+    std::string error;
+    int64_t submitted_ms = 0, started_ms = 0, finished_ms = 0;
+    JobSettings settings;
+};
+
+struct FrameRow {
+    int frame = 0;
+    int state = 0;  // v1::FrameState
+    int tasks_total = 0, tasks_done = 0;
+    int64_t first_task_id = 0;
+    int64_t started_ms = 0;
+    std::string exr_path;
+};
+
+struct TaskRow {
+    int64_t id = 0;
+    int64_t job_id = 0;
+    int frame = 0;
+    std::string stage;
+    int task_index = 0;
+    TaskState state = TaskState::kPending;
+    int attempts = 0;  // leases handed out
+    int failures = 0;  // FailTask calls
+    int64_t lease_id = 0;
+    int64_t worker_id = 0;
+    std::string result_hash;
+    int completions = 0;
+};
+
+struct FailureRow {
+    int frame = 0, task_index = 0, attempt = 0;
+    std::string worker, message;
+};
+
+struct WorkerRow {
+    int64_t id = 0;
+    std::string name;
+    int threads = 0;
+};
+
+class Store {
+  public:
+    // Opens or creates the database, in WAL mode with synchronous=NORMAL: a commit is
+    // in the WAL before the call returns, so it survives the process being killed.
+    explicit Store(const std::string& path);
+
+    SqliteDb& Db() { return db_; }
+    // Copies the WAL into the database file (PASSIVE) over a second connection, so that
+    // the fsyncs of a checkpoint do not stall the connection that serves requests.
+    // Thread-safe against that connection; call from one thread at a time.
+    void Checkpoint();
+
+    int64_t GetMeta(const std::string& key, int64_t fallback);
+    void SetMeta(const std::string& key, int64_t value);
+
+    // Inserts the job, its frames, stages and tasks; returns the job's id.
+    int64_t InsertJob(const NewJob& job, int64_t now_ms);
+    std::optional<JobRow> GetJob(int64_t job_id);
+    std::string GetJobSpec(int64_t job_id);
+    std::vector<int64_t> JobIds();
+    void SetJobState(int64_t job_id, int state, const std::string& error, int64_t finished_ms);
+    // Counts a lease; a QUEUED job becomes RUNNING.
+    void CountLease(int64_t job_id, int64_t now_ms);
+    void CountTaskDone(int64_t job_id);
+    std::optional<int> JobState(int64_t job_id);
+
+    std::vector<FrameRow> GetFrames(int64_t job_id);
+    std::optional<FrameRow> GetFrame(int64_t job_id, int frame);
+    void MarkFrameRendering(int64_t job_id, int frame, int64_t now_ms);
+    // Returns the frame's tasks done after counting this one.
+    int CountFrameTaskDone(int64_t job_id, int frame);
+    void SetFrameDone(int64_t job_id, int frame, const std::string& exr_path);
+    // Frames not DONE become FAILED.
+    void FailOpenFrames(int64_t job_id);
+    int CountFramesNotDone(int64_t job_id);
+    // (job id, frame) of frames whose tasks are all done but whose EXR is not written,
+    // in running jobs: work left over from a crash.
+    std::vector<std::pair<int64_t, int>> FramesAwaitingAssembly();
+
+    std::optional<TaskRow> NextPendingTask();
+    std::optional<TaskRow> GetTask(int64_t task_id);
+    void LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id);
+    // Each returns true if the task held lease `lease_id` (and so changed).
+    bool CompleteTask(int64_t task_id, int64_t lease_id, const std::string& result_hash);
+    bool RequeueTask(int64_t task_id, int64_t lease_id, bool count_failure);
+    // Undoes a lease that never reached a worker: the task is pending again and
+    // neither its attempt nor the job's lease count keep it.
+    bool ReleaseTask(int64_t task_id, int64_t lease_id, int64_t job_id);
+    // A done task becomes pending again (its result was lost); true if it was done.
+    bool RequeueDoneTask(int64_t task_id);
+    // Takes `n` back from the frame's and the job's tasks done.
+    void UncountTasksDone(int64_t job_id, int frame, int n);
+    // Pending and leased tasks in [first, last] are dropped (cancel, job failure).
+    void DropTasks(int64_t first_task_id, int64_t last_task_id);
+    std::vector<TaskRow> LeasedTasks();
+    // (task index, result hash) of a frame's tasks, in task order.
+    std::vector<std::pair<int, std::string>> FrameResults(const FrameRow& frame);
+
+    void InsertFailure(int64_t job_id, const FailureRow& failure, int64_t now_ms);
+    // Most recent first.
+    std::vector<FailureRow> RecentFailures(int64_t job_id, int limit);
+
+    int64_t InsertWorker(const std::string& name, int threads, int64_t now_ms);
+    std::vector<WorkerRow> Workers();
+
+  private:
+    std::string path_;
+    TaskRow ReadTask(const SqliteStatement& s) const;
+    FrameRow ReadFrame(const SqliteStatement& s) const;
+
+    SqliteDb db_;
+    std::unique_ptr<SqliteDb> checkpoint_db_;
+    SqliteStatement get_meta_, set_meta_;
+    SqliteStatement insert_job_, insert_frame_, insert_stage_, insert_task_, max_task_id_;
+    SqliteStatement get_job_, get_job_spec_, job_ids_, set_job_state_, count_lease_,
+        count_task_done_, job_state_, uncount_lease_;
+    SqliteStatement get_frames_, get_frame_, frame_rendering_, frame_task_done_, frame_done_,
+        fail_open_frames_, frames_not_done_, frames_awaiting_;
+    SqliteStatement next_pending_, get_task_, lease_task_, complete_task_, requeue_task_,
+        release_task_, requeue_done_, uncount_frame_done_, uncount_job_done_, drop_tasks_,
+        leased_tasks_, frame_results_;
+    SqliteStatement insert_failure_, recent_failures_, insert_worker_, workers_;
+};
+
+}  // namespace tessera

@@ -1,0 +1,169 @@
+// The `tessera render` command as a user runs it: real processes, real files.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "io/image_io.h"
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+
+class CliTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() /
+               ("tessera_cli_" + std::to_string(::getpid()) + "_" +
+                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+
+    // Runs the CLI with `args`; returns its exit status and keeps stdout in out_ and
+    // stderr in err_.
+    int Run(const std::string& args) {
+        std::string out_path = (dir_ / "stdout.txt").string();
+        std::string err_path = (dir_ / "stderr.txt").string();
+        std::string cmd =
+            std::string(TESSERA_CLI) + " " + args + " >" + out_path + " 2>" + err_path;
+        int status = std::system(cmd.c_str());
+        out_ = ReadFile(out_path);
+        err_ = ReadFile(err_path);
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
+
+    static std::string ReadFile(const std::string& path) {
+        std::ifstream in(path);
+        std::stringstream ss;
+        ss << in.rdbuf();
+        return ss.str();
+    }
+
+    std::string WriteScene(const std::string& name, const std::string& text) {
+        fs::path p = dir_ / name;
+        std::ofstream(p) << text;
+        return p.string();
+    }
+
+    fs::path dir_;
+    std::string out_, err_;
+};
+
+const std::string kFurnace = std::string(TESSERA_SOURCE_DIR) + "/scenes/furnace/scene.json";
+
+TEST_F(CliTest, RendersAnExrWithMetadataAndAPreview) {
+    std::string out = (dir_ / "f.exr").string();
+    ASSERT_EQ(
+        0, Run("render " + kFurnace + " -o " + out + " --spp 4 --width 24 --height 16 --seed 7 -q"))
+        << err_;
+    ImageMetadata meta;
+    Image image = ReadImage(out, &meta);
+    EXPECT_EQ(image.width, 24);
+    EXPECT_EQ(image.height, 16);
+    EXPECT_GE(image.ChannelIndex("albedo.R"), 0);
+    EXPECT_GE(image.ChannelIndex("N.Z"), 0);
+    EXPECT_GE(image.ChannelIndex("Z"), 0);
+    EXPECT_EQ(meta["tessera:spp"], "4");
+    EXPECT_EQ(meta["tessera:seed"], "7");
+    EXPECT_EQ(meta["tessera:integrator"], "path");
+    EXPECT_FALSE(meta["tessera:render_time_s"].empty());
+    EXPECT_TRUE(fs::exists(dir_ / "f.png"));
+}
+
+TEST_F(CliTest, SameSeedSamePixelsWhateverTheThreadCount) {
+    std::string common = kFurnace + " --spp 3 --width 40 --height 30 --seed 5 --tile-size 8 -q";
+    ASSERT_EQ(0, Run("render " + common + " --threads 1 -o " + (dir_ / "a.exr").string())) << err_;
+    ASSERT_EQ(0, Run("render " + common + " --threads 2 -o " + (dir_ / "b.exr").string())) << err_;
+    Image a = ReadImage((dir_ / "a.exr").string()), b = ReadImage((dir_ / "b.exr").string());
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    EXPECT_EQ(0, std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)));
+}
+
+TEST_F(CliTest, HelpListsEveryOption) {
+    ASSERT_EQ(0, Run("render --help"));
+    for (const char* opt : {"--output", "--spp", "--integrator", "--threads", "--seed", "--frame",
+                            "--tile-size", "--width", "--height"})
+        EXPECT_NE(out_.find(opt), std::string::npos) << opt;
+}
+
+// A broken scene: non-zero exit, a message naming the file and the place, no output.
+void ExpectSceneError(int status, const std::string& err, const std::string& file,
+                      const std::string& where, const fs::path& out) {
+    EXPECT_NE(status, 0);
+    EXPECT_NE(err.find(file), std::string::npos) << err;
+    EXPECT_NE(err.find(where), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_FALSE(fs::exists(fs::path(out).replace_extension(".png")));
+}
+
+const char* kValid = R"({
+  "render": {"width": 8, "height": 8, "spp": 1},
+  "camera": {"type": "perspective", "eye": [0, 0, -3], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.5}},
+  "shapes": [ {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"} ],
+  "lights": [ {"type": "environment", "radiance": [1, 1, 1]} ]
+})";
+
+std::string Replace(std::string s, const std::string& from, const std::string& to) {
+    size_t at = s.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return s.replace(at, from.size(), to);
+}
+
+TEST_F(CliTest, ValidSceneRenders) {
+    std::string scene = WriteScene("ok.json", kValid);
+    EXPECT_EQ(0, Run("render " + scene + " -q -o " + (dir_ / "ok.exr").string())) << err_;
+    EXPECT_TRUE(fs::exists(dir_ / "ok.exr"));
+}
+
+TEST_F(CliTest, MalformedJsonNamesTheLine) {
+    std::string scene = WriteScene("bad.json", Replace(kValid, "\"spp\": 1}", "\"spp\": 1,,}"));
+    fs::path out = dir_ / "bad.exr";
+    int status = Run("render " + scene + " -q -o " + out.string());
+    ExpectSceneError(status, err_, "bad.json", ":2:", out);
+}
+
+TEST_F(CliTest, UnknownKeyNamesItsPath) {
+    std::string scene = WriteScene("typo.json", Replace(kValid, "\"radius\": 1", "\"radiu\": 1"));
+    fs::path out = dir_ / "typo.exr";
+    int status = Run("render " + scene + " -q -o " + out.string());
+    ExpectSceneError(status, err_, "typo.json", "/shapes/0", out);
+    EXPECT_NE(err_.find("radiu"), std::string::npos) << err_;
+}
+
+TEST_F(CliTest, MissingMeshFileIsNamed) {
+    std::string scene = WriteScene(
+        "mesh.json",
+        Replace(kValid,
+                R"({"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"})",
+                R"({"type": "mesh", "file": "nowhere.obj", "material": "white"})"));
+    fs::path out = dir_ / "mesh.exr";
+    int status = Run("render " + scene + " -q -o " + out.string());
+    ExpectSceneError(status, err_, "mesh.json", "nowhere.obj", out);
+}
+
+TEST_F(CliTest, NegativeRadiusIsRejected) {
+    std::string scene = WriteScene("neg.json", Replace(kValid, "\"radius\": 1", "\"radius\": -1"));
+    fs::path out = dir_ / "neg.exr";
+    int status = Run("render " + scene + " -q -o " + out.string());
+    ExpectSceneError(status, err_, "neg.json", "/shapes/0/radius", out);
+}
+
+TEST_F(CliTest, BadCommandLineValueIsRejected) {
+    EXPECT_NE(0, Run("render " + kFurnace + " -q --spp 0 -o " + (dir_ / "x.exr").string()));
+    EXPECT_NE(0,
+              Run("render " + kFurnace + " -q --integrator nope -o " + (dir_ / "x.exr").string()));
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+}
+
+}  // namespace
+}  // namespace tessera

@@ -1,0 +1,657 @@
+// Coordinator tests without sockets: job submission and its validation, a farm render
+// driven through the logic layer that must equal the local runner bit for bit, result
+// checks, long polls, restart recovery of frames left unwritten, watching; then the
+// gRPC adapters end to end over an in-process channel.
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <thread>
+
+#include "blob_client.h"
+#include "convert.h"
+#include "coordinator.h"
+#include "errors.h"
+#include "io/image_io.h"
+#include "plan/local_runner.h"
+#include "plan/render_plan.h"
+#include "scene/scene_loader.h"
+#include "services.h"
+#include "sha256.h"
+#include "tessera/v1/tessera.grpc.pb.h"
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+// Warnings and errors only: an info line per lease would drown the test output.
+class QuietLogs : public ::testing::Environment {
+    void SetUp() override { spdlog::set_level(spdlog::level::warn); }
+};
+::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+
+// 24x16 pixels in 8-pixel tiles: 3 x 2 = 6 tasks per frame.
+constexpr const char* kScene = R"json({
+  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 4,
+             "tile_size": 8},
+  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+             "fov": 40},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
+  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
+  "lights": [{"type": "environment", "radiance": 1}]
+})json";
+constexpr int kTasksPerFrame = 6;
+
+ErrorCode CodeOf(const std::function<void()>& f, std::string* message = nullptr) {
+    try {
+        f();
+    } catch (const CoordinatorError& e) {
+        if (message) *message = e.what();
+        return e.Code();
+    }
+    ADD_FAILURE() << "no error";
+    return ErrorCode::kInternal;
+}
+
+// Collects a watch's events.
+class RecordingWatcher final : public JobWatcher {
+  public:
+    void Deliver(const v1::JobEvent& event, bool last) override {
+        std::lock_guard lock(mu_);
+        events_.push_back(event);
+        last_ = last;
+        cv_.notify_all();
+    }
+    void Close() override {}
+    bool WaitLast(std::chrono::milliseconds timeout) {
+        std::unique_lock lock(mu_);
+        return cv_.wait_for(lock, timeout, [this] { return last_; });
+    }
+    std::vector<v1::JobEvent> Events() {
+        std::lock_guard lock(mu_);
+        return events_;
+    }
+
+  private:
+    std::mutex mu_;
+    std::condition_variable cv_;
+    std::vector<v1::JobEvent> events_;
+    bool last_ = false;
+};
+
+class CoordinatorTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir_ = fs::temp_directory_path() /
+               ("tessera_coordinator_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_ / "local");
+        options_.state_dir = (dir_ / "state").string();
+        options_.output_dir = (dir_ / "out").string();
+        options_.scheduler.lease_ms = 5000;
+        options_.sweep_interval_ms = 20;
+        options_.limits.max_frames = 10;
+        options_.limits.max_spp = 1000;
+        options_.limits.max_resolution = 4096;
+        scene_path_ = (dir_ / "local" / "scene.json").string();
+        std::ofstream(scene_path_) << kScene;
+    }
+    void TearDown() override {
+        coordinator_.reset();
+        fs::remove_all(dir_);
+    }
+    Coordinator& C() {
+        if (!coordinator_) {
+            coordinator_ = std::make_unique<Coordinator>(options_, clock_);
+            if (start_) coordinator_->Start();
+        }
+        return *coordinator_;
+    }
+    void Restart() {
+        coordinator_.reset();
+        C();
+    }
+
+    std::string PutBlob(const std::string& bytes) {
+        std::string hash = Sha256Hex(bytes);
+        C().Blobs().Put(hash, bytes);
+        return hash;
+    }
+    v1::JobSpec SceneSpec(const std::string& scene = kScene) {
+        v1::JobSpec spec;
+        spec.set_scene_path("shots/scene.json");
+        v1::BundleFile* f = spec.add_files();
+        f->set_path("shots/scene.json");
+        f->set_hash(PutBlob(scene));
+        f->set_size(scene.size());
+        return spec;
+    }
+
+    std::optional<LeasedTask> LeaseNow(const std::string& worker, int wait_ms = 0) {
+        std::promise<std::optional<LeasedTask>> promise;
+        C().LeaseTask(worker, wait_ms, [&](std::optional<LeasedTask> t, std::exception_ptr e) {
+            if (e)
+                promise.set_exception(e);
+            else
+                promise.set_value(std::move(t));
+        });
+        return promise.get_future().get();
+    }
+
+    // What a worker would upload: the encoded tile of the task.
+    std::string Render(const LeasedTask& task) {
+        if (!loaded_.scene) loaded_ = LoadSceneFile(scene_path_, FromProto(task.spec->options()));
+        RenderSettings settings = loaded_.settings;
+        settings.frame = task.frame;
+        FrameRenderer renderer(*loaded_.scene, settings);
+        ScratchBuffer arena;
+        return EncodeTileResult(ExecuteTileTask(renderer, task.task_index, arena));
+    }
+    void RenderAll(const std::string& worker) {
+        while (std::optional<LeasedTask> t = LeaseNow(worker)) {
+            std::string hash = PutBlob(Render(*t));
+            C().CompleteTask(worker, t->task_id, t->lease_id, hash);
+        }
+    }
+    v1::JobStatus WaitFinished(const std::string& job_id) {
+        auto until = std::chrono::steady_clock::now() + 20s;
+        v1::JobStatus st;
+        do {
+            st = C().GetJob(job_id);
+            if (st.state() >= v1::JOB_STATE_DONE) break;
+            std::this_thread::sleep_for(10ms);
+        } while (std::chrono::steady_clock::now() < until);
+        return st;
+    }
+    void ExpectSameAsLocal(const std::string& exr, int frame) {
+        LoadedScene local = LoadSceneFile(scene_path_);
+        RenderSettings settings = local.settings;
+        settings.frame = frame;
+        Image expected = RenderFrameLocal(*local.scene, settings, 2);
+        ImageMetadata meta;
+        Image got = ReadImage(exr, &meta);
+        EXPECT_EQ(meta["tessera:scene"], "scene.json");
+        EXPECT_EQ(meta["tessera:frame"], std::to_string(frame));
+        ASSERT_EQ(got.width, expected.width);
+        ASSERT_EQ(got.height, expected.height);
+        for (int c = 0; c < expected.NumChannels(); ++c) {
+            int gc = got.ChannelIndex(expected.channels[c]);
+            ASSERT_GE(gc, 0) << expected.channels[c];
+            for (int y = 0; y < expected.height; ++y)
+                for (int x = 0; x < expected.width; ++x) {
+                    float a = expected.At(x, y, c), b = got.At(x, y, gc);
+                    ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0)
+                        << expected.channels[c] << " at " << x << "," << y << ": " << a << " vs "
+                        << b;
+                }
+        }
+    }
+
+    fs::path dir_;
+    std::string scene_path_;
+    SystemClock clock_;
+    CoordinatorOptions options_;
+    bool start_ = true;
+    std::unique_ptr<Coordinator> coordinator_;
+    LoadedScene loaded_;
+};
+
+TEST_F(CoordinatorTest, SubmitRejectsBadSpecsWithTheRightCode) {
+    std::string message;
+    v1::JobSpec spec = SceneSpec();
+    v1::JobSpec missing = spec;
+    missing.mutable_files(0)->set_hash(Sha256Hex("never uploaded"));
+    EXPECT_EQ(CodeOf([&] { C().SubmitJob(missing); }, &message), ErrorCode::kNotFound);
+    EXPECT_NE(message.find("shots/scene.json"), std::string::npos) << message;
+    EXPECT_NE(message.find(Sha256Hex("never uploaded")), std::string::npos) << message;
+
+    auto invalid = [&](const std::function<void(v1::JobSpec&)>& change, const std::string& text,
+                       ErrorCode code = ErrorCode::kInvalidArgument) {
+        v1::JobSpec s = spec;
+        change(s);
+        std::string m;
+        EXPECT_EQ(static_cast<int>(CodeOf([&] { C().SubmitJob(s); }, &m)), static_cast<int>(code))
+            << m;
+        EXPECT_NE(m.find(text), std::string::npos) << m;
+    };
+    invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_path("../escape.json"); }, "escapes");
+    invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_path("/abs.json"); }, "absolute");
+    invalid([](v1::JobSpec& s) { s.set_scene_path("other.json"); }, "not among");
+    invalid([](v1::JobSpec& s) { s.set_name("bad name!"); }, "may contain only");
+    invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_hash("xyz"); }, "malformed hash");
+    invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_size(3); }, "declares 3 bytes");
+    invalid([](v1::JobSpec& s) { *s.add_files() = s.files(0); }, "twice");
+    invalid([](v1::JobSpec& s) { s.set_frame_start(5), s.set_frame_end(4); }, "before");
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_sampler("sobol"); }, "sobol");
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_integrator("magic"); }, "magic");
+    invalid([](v1::JobSpec& s) { s.set_frame_end(10); }, "11 frames",
+            ErrorCode::kResourceExhausted);
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_spp(1001); }, "1001 spp",
+            ErrorCode::kResourceExhausted);
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_width(5000); }, "5000x",
+            ErrorCode::kResourceExhausted);
+
+    // A scene that does not load: the loader's message names the file and JSON path.
+    std::string broken = kScene;
+    broken.replace(broken.find("\"fov\""), 5, "\"fob\"");
+    v1::JobSpec bad_scene = SceneSpec(broken);
+    EXPECT_EQ(CodeOf([&] { C().SubmitJob(bad_scene); }, &message), ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("scene.json"), std::string::npos) << message;
+    EXPECT_NE(message.find("fob"), std::string::npos) << message;
+
+    EXPECT_TRUE(C().ListJobs().empty());
+    std::string job = C().SubmitJob(spec);
+    v1::JobStatus st = C().GetJob(job);
+    EXPECT_EQ(st.name(), "scene");  // the scene's stem by default
+    EXPECT_EQ(st.state(), v1::JOB_STATE_QUEUED);
+    EXPECT_EQ(st.tasks_total(), kTasksPerFrame);
+    EXPECT_EQ(st.width(), 24);
+    EXPECT_EQ(st.spp(), 2);
+    EXPECT_TRUE(
+        fs::is_regular_file(dir_ / "state" / "jobs" / job / "bundle" / "shots" / "scene.json"));
+}
+
+TEST_F(CoordinatorTest, FarmRenderEqualsTheLocalRunnerBitForBit) {
+    v1::JobSpec spec = SceneSpec();
+    spec.set_name("shot");
+    spec.set_frame_start(3);
+    spec.set_frame_end(4);
+    std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.tasks_done(), 2 * kTasksPerFrame);
+    EXPECT_EQ(st.leases_granted(), 2 * kTasksPerFrame);
+    const std::string exr = (dir_ / "out" / job / "shot.0004.exr").string();
+    EXPECT_EQ(st.frames(1).exr_path(), exr);
+    EXPECT_EQ(C().FrameFile(job, 4, false), exr);
+    EXPECT_TRUE(fs::is_regular_file(C().FrameFile(job, 4, true)));
+    EXPECT_EQ(CodeOf([&] { C().FrameFile(job, 7, false); }), ErrorCode::kNotFound);
+    ExpectSameAsLocal(exr, 4);
+}
+
+TEST_F(CoordinatorTest, CompleteChecksTheResultBlob) {
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    LeasedTask a = *LeaseNow(w);
+    LeasedTask b = *LeaseNow(w);
+    std::string message;
+    EXPECT_EQ(
+        CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, Sha256Hex("absent")); }, &message),
+        ErrorCode::kNotFound);
+    EXPECT_NE(message.find("not uploaded"), std::string::npos) << message;
+    const std::string junk = PutBlob("not a tile result at all");
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, junk); }, &message),
+              ErrorCode::kInvalidArgument);
+    const std::string other_tile = PutBlob(Render(b));
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, other_tile); }, &message),
+              ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("not task"), std::string::npos) << message;
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id + 100, junk); }),
+              ErrorCode::kFailedPrecondition);
+    C().CompleteTask(w, a.task_id, a.lease_id, PutBlob(Render(a)));
+    EXPECT_EQ(C().GetJob(job).tasks_done(), 1);
+}
+
+TEST_F(CoordinatorTest, LongPollIsAnsweredWhenWorkArrivesOrTimeRunsOut) {
+    std::string w = C().Register("w1", 1).worker_id;
+    auto start = std::chrono::steady_clock::now();
+    EXPECT_FALSE(LeaseNow(w, 150).has_value());
+    EXPECT_GE(std::chrono::steady_clock::now() - start, 140ms);
+
+    std::promise<std::optional<LeasedTask>> promise;
+    C().LeaseTask(w, 20000, [&](std::optional<LeasedTask> t, std::exception_ptr) {
+        promise.set_value(std::move(t));
+    });
+    auto future = promise.get_future();
+    EXPECT_EQ(future.wait_for(100ms), std::future_status::timeout);
+    EXPECT_EQ(C().Dispatcher().Waiting(), 1u);
+    std::string job = C().SubmitJob(SceneSpec());
+    ASSERT_EQ(future.wait_for(5s), std::future_status::ready);
+    std::optional<LeasedTask> t = future.get();
+    ASSERT_TRUE(t.has_value());
+    EXPECT_EQ(t->job_id, job);
+
+    // A cancelled wait is answered at once, without a task.
+    std::promise<bool> cancelled;
+    uint64_t handle =
+        C().LeaseTask("w-1", 20000, [&](std::optional<LeasedTask> t, std::exception_ptr) {
+            cancelled.set_value(t.has_value());
+        });
+    // The job still has pending tasks, so the wait may have been served already.
+    C().CancelLeaseWait(handle);
+    auto f = cancelled.get_future();
+    ASSERT_EQ(f.wait_for(5s), std::future_status::ready);
+    EXPECT_EQ(CodeOf([&] { LeaseNow("w-77"); }), ErrorCode::kNotFound);
+}
+
+TEST_F(CoordinatorTest, RestartWritesFramesWhoseTasksWereAllDone) {
+    start_ = false;  // no assembly thread: as if killed right after the last CompleteTask
+    v1::JobSpec spec = SceneSpec();
+    spec.set_name("crash");
+    std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    EXPECT_EQ(C().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+    EXPECT_FALSE(fs::exists(dir_ / "out" / job / "crash.0000.exr"));
+    start_ = true;
+    Restart();
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kTasksPerFrame);
+    ExpectSameAsLocal((dir_ / "out" / job / "crash.0000.exr").string(), 0);
+}
+
+TEST_F(CoordinatorTest, ALostTileResultIsRenderedAgain) {
+    start_ = false;
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    // The result of tile 2 vanishes before the frame is written.
+    const std::string lost = C().GetScheduler().GetAssemblyInput(job, 0).results[2].second;
+    fs::remove(C().Blobs().PathOf(lost));
+    start_ = true;
+    Restart();
+    auto until = std::chrono::steady_clock::now() + 10s;
+    std::optional<LeasedTask> again;
+    while (!again && std::chrono::steady_clock::now() < until) again = LeaseNow(w, 100);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(again->task_index, 2);
+    EXPECT_EQ(again->attempt, 2);
+    C().CompleteTask(w, again->task_id, again->lease_id, PutBlob(Render(*again)));
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kTasksPerFrame + 1);
+    ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0);
+}
+
+TEST_F(CoordinatorTest, WatchSendsSnapshotThenChangesAndTheFinalState) {
+    std::string job = C().SubmitJob(SceneSpec());
+    RecordingWatcher watcher;
+    C().Watches().Watch(job, &watcher);
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    ASSERT_TRUE(watcher.WaitLast(20s));
+    C().Watches().Unwatch(&watcher);
+    std::vector<v1::JobEvent> events = watcher.Events();
+    ASSERT_GE(events.size(), 2u);
+    EXPECT_EQ(events.front().message(), "snapshot");
+    EXPECT_EQ(events.front().status().state(), v1::JOB_STATE_QUEUED);
+    EXPECT_EQ(events.back().status().state(), v1::JOB_STATE_DONE);
+    std::string all;
+    for (const v1::JobEvent& e : events) all += e.message() + "\n";
+    EXPECT_NE(all.find("frame 0 done"), std::string::npos) << all;
+    EXPECT_NE(all.find("job done"), std::string::npos) << all;
+
+    // Watching a finished job: the snapshot is the last event.
+    RecordingWatcher late;
+    C().Watches().Watch(job, &late);
+    EXPECT_TRUE(late.WaitLast(0ms));
+    EXPECT_EQ(CodeOf([&] { C().Watches().Watch("job-99", &late); }), ErrorCode::kNotFound);
+}
+
+TEST_F(CoordinatorTest, CancelStopsWorkAndWritesNothing) {
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    LeasedTask t = *LeaseNow(w);
+    EXPECT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
+    HeartbeatReply r = C().Heartbeat(w, t.task_id, t.lease_id);
+    EXPECT_FALSE(r.lease_valid);
+    EXPECT_TRUE(r.cancelled);
+    EXPECT_FALSE(LeaseNow(w).has_value());
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, PutBlob(Render(t))); }),
+              ErrorCode::kFailedPrecondition);
+    EXPECT_FALSE(fs::exists(dir_ / "out" / job));
+}
+
+// The gRPC adapters over an in-process channel: no sockets.
+class GrpcAdapterTest : public CoordinatorTest {
+  protected:
+    void StartServer() {
+        farm_ = MakeFarmService(C());
+        workers_ = MakeWorkersService(C());
+        blobs_ = MakeBlobStoreService(C());
+        grpc::ServerBuilder builder;
+        builder.RegisterService(farm_.get());
+        builder.RegisterService(workers_.get());
+        builder.RegisterService(blobs_.get());
+        server_ = builder.BuildAndStart();
+        ASSERT_TRUE(server_);
+        auto channel = server_->InProcessChannel(grpc::ChannelArguments());
+        farm_stub_ = v1::Farm::NewStub(channel);
+        workers_stub_ = v1::Workers::NewStub(channel);
+        blob_stub_ = v1::BlobStore::NewStub(channel);
+    }
+    void TearDown() override {
+        if (server_) {
+            C().StopWaiting();
+            server_->Shutdown();
+        }
+        CoordinatorTest::TearDown();
+    }
+
+    std::unique_ptr<grpc::Service> farm_, workers_, blobs_;
+    std::unique_ptr<grpc::Server> server_;
+    std::unique_ptr<v1::Farm::Stub> farm_stub_;
+    std::unique_ptr<v1::Workers::Stub> workers_stub_;
+    std::unique_ptr<v1::BlobStore::Stub> blob_stub_;
+};
+
+TEST_F(GrpcAdapterTest, AJobEndToEnd) {
+    StartServer();
+    const std::string scene = kScene;
+    std::string hash = UploadBlob(*blob_stub_, scene);
+    EXPECT_EQ(DownloadBlob(*blob_stub_, hash), scene);
+
+    v1::SubmitJobRequest submit;
+    v1::JobSpec* spec = submit.mutable_spec();
+    spec->set_name("e2e");
+    spec->set_scene_path("scene.json");
+    v1::BundleFile* f = spec->add_files();
+    f->set_path("scene.json");
+    f->set_hash(hash);
+    f->set_size(scene.size());
+    v1::SubmitJobResponse submitted;
+    {
+        grpc::ClientContext ctx;
+        ASSERT_TRUE(farm_stub_->SubmitJob(&ctx, submit, &submitted).ok());
+    }
+    const std::string job = submitted.job_id();
+
+    // Watch in the background while a worker renders.
+    std::vector<v1::JobEvent> events;
+    grpc::Status watch_status;
+    std::thread watcher([&] {
+        grpc::ClientContext ctx;
+        v1::WatchJobRequest req;
+        req.set_job_id(job);
+        auto reader = farm_stub_->WatchJob(&ctx, req);
+        v1::JobEvent e;
+        while (reader->Read(&e)) events.push_back(e);
+        watch_status = reader->Finish();
+    });
+
+    v1::RegisterResponse reg;
+    {
+        grpc::ClientContext ctx;
+        v1::RegisterRequest req;
+        req.set_name("grpc-worker");
+        req.set_threads(1);
+        ASSERT_TRUE(workers_stub_->Register(&ctx, req, &reg).ok());
+    }
+    EXPECT_EQ(reg.lease_duration_ms(), 5000);
+    int rendered = 0;
+    while (true) {
+        grpc::ClientContext ctx;
+        v1::LeaseTaskRequest req;
+        req.set_worker_id(reg.worker_id());
+        req.set_wait_ms(200);
+        v1::LeaseTaskResponse resp;
+        ASSERT_TRUE(workers_stub_->LeaseTask(&ctx, req, &resp).ok());
+        if (!resp.has_task()) break;
+        const v1::Task& task = resp.task();
+        EXPECT_EQ(task.spec().files(0).hash(), hash);
+        {
+            grpc::ClientContext hctx;
+            v1::HeartbeatRequest hb;
+            hb.set_worker_id(reg.worker_id());
+            hb.set_task_id(task.task_id());
+            hb.set_lease_id(task.lease_id());
+            v1::HeartbeatResponse hr;
+            ASSERT_TRUE(workers_stub_->Heartbeat(&hctx, hb, &hr).ok());
+            EXPECT_TRUE(hr.lease_valid());
+        }
+        LeasedTask lt;
+        lt.frame = task.frame();
+        lt.task_index = task.task_index();
+        lt.spec = std::make_shared<v1::JobSpec>(task.spec());
+        std::string result = UploadBlob(*blob_stub_, Render(lt));
+        grpc::ClientContext cctx;
+        v1::CompleteTaskRequest done;
+        done.set_worker_id(reg.worker_id());
+        done.set_task_id(task.task_id());
+        done.set_lease_id(task.lease_id());
+        done.set_result_hash(result);
+        v1::CompleteTaskResponse ignored;
+        ASSERT_TRUE(workers_stub_->CompleteTask(&cctx, done, &ignored).ok());
+        ++rendered;
+    }
+    EXPECT_EQ(rendered, kTasksPerFrame);
+    watcher.join();
+    EXPECT_TRUE(watch_status.ok()) << watch_status.error_message();
+    ASSERT_GE(events.size(), 2u);
+    EXPECT_EQ(events.back().status().state(), v1::JOB_STATE_DONE);
+
+    grpc::ClientContext dctx;
+    v1::DownloadFrameRequest dreq;
+    dreq.set_job_id(job);
+    dreq.set_frame(0);
+    auto reader = farm_stub_->DownloadFrame(&dctx, dreq);
+    std::string bytes;
+    v1::FileChunk chunk;
+    while (reader->Read(&chunk)) bytes += chunk.data();
+    ASSERT_TRUE(reader->Finish().ok());
+    std::ifstream in(dir_ / "out" / job / "e2e.0000.exr", std::ios::binary);
+    std::string on_disk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_FALSE(bytes.empty());
+    EXPECT_EQ(bytes, on_disk);
+}
+
+TEST_F(GrpcAdapterTest, BadRequestsGetStatusesNotCrashes) {
+    StartServer();
+    auto get = [&](const std::string& id) {
+        grpc::ClientContext ctx;
+        v1::GetJobRequest req;
+        req.set_job_id(id);
+        v1::JobStatus st;
+        return farm_stub_->GetJob(&ctx, req, &st).error_code();
+    };
+    EXPECT_EQ(get("job-12"), grpc::StatusCode::NOT_FOUND);
+    EXPECT_EQ(get("bogus"), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(get(""), grpc::StatusCode::INVALID_ARGUMENT);
+    {
+        grpc::ClientContext ctx;
+        v1::SubmitJobRequest req;
+        v1::SubmitJobResponse resp;
+        EXPECT_EQ(farm_stub_->SubmitJob(&ctx, req, &resp).error_code(),
+                  grpc::StatusCode::INVALID_ARGUMENT);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::DownloadFrameRequest req;
+        req.set_job_id("job-3");
+        auto reader = farm_stub_->DownloadFrame(&ctx, req);
+        v1::FileChunk chunk;
+        EXPECT_FALSE(reader->Read(&chunk));
+        EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::WatchJobRequest req;
+        req.set_job_id("job-3");
+        auto reader = farm_stub_->WatchJob(&ctx, req);
+        v1::JobEvent e;
+        EXPECT_FALSE(reader->Read(&e));
+        EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+    }
+    {  // bytes that do not match the declared hash
+        grpc::ClientContext ctx;
+        v1::PutBlobResponse resp;
+        auto writer = blob_stub_->PutBlob(&ctx, &resp);
+        v1::PutBlobRequest header;
+        header.mutable_header()->set_hash(Sha256Hex("promised"));
+        header.mutable_header()->set_size(8);
+        writer->Write(header);
+        v1::PutBlobRequest data;
+        data.set_data("delivers");
+        writer->Write(data);
+        writer->WritesDone();
+        EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::DATA_LOSS);
+        EXPECT_FALSE(C().Blobs().Has(Sha256Hex("promised")));
+    }
+    {  // no header
+        grpc::ClientContext ctx;
+        v1::PutBlobResponse resp;
+        auto writer = blob_stub_->PutBlob(&ctx, &resp);
+        v1::PutBlobRequest data;
+        data.set_data("x");
+        writer->Write(data);
+        writer->WritesDone();
+        EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::GetBlobRequest req;
+        req.set_hash(Sha256Hex("absent"));
+        auto reader = blob_stub_->GetBlob(&ctx, req);
+        v1::BlobChunk chunk;
+        EXPECT_FALSE(reader->Read(&chunk));
+        EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::HeartbeatRequest req;
+        req.set_worker_id("w-404");
+        v1::HeartbeatResponse resp;
+        EXPECT_EQ(workers_stub_->Heartbeat(&ctx, req, &resp).error_code(),
+                  grpc::StatusCode::NOT_FOUND);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::CompleteTaskRequest req;
+        req.set_worker_id(C().Register("w", 1).worker_id);
+        req.set_task_id(999);
+        req.set_lease_id(1);
+        v1::CompleteTaskResponse resp;
+        EXPECT_EQ(workers_stub_->CompleteTask(&ctx, req, &resp).error_code(),
+                  grpc::StatusCode::NOT_FOUND);
+    }
+    {  // a long poll whose client gives up first
+        grpc::ClientContext ctx;
+        ctx.set_deadline(std::chrono::system_clock::now() + 200ms);
+        v1::LeaseTaskRequest req;
+        req.set_worker_id(C().Register("w", 1).worker_id);
+        req.set_wait_ms(20000);
+        v1::LeaseTaskResponse resp;
+        EXPECT_EQ(workers_stub_->LeaseTask(&ctx, req, &resp).error_code(),
+                  grpc::StatusCode::DEADLINE_EXCEEDED);
+        auto until = std::chrono::steady_clock::now() + 5s;
+        while (C().Dispatcher().Waiting() > 0 && std::chrono::steady_clock::now() < until)
+            std::this_thread::sleep_for(10ms);
+        EXPECT_EQ(C().Dispatcher().Waiting(), 0u);
+    }
+}
+
+}  // namespace
+}  // namespace tessera

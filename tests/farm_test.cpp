@@ -1,0 +1,825 @@
+// The farm as its users run it: a real coordinator and real workers as processes on
+// 127.0.0.1, the `tessera` command, and the gRPC API spoken directly where a test must
+// play a misbehaving client or worker. Every farm image must equal the local render bit
+// for bit, whatever crashes on the way.
+//
+// Each test has its own folders and ports (port 0, read back from --port-file); every
+// wait is a poll with a deadline; every process is killed with its group in TearDown.
+
+#include <fcntl.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "blob_client.h"
+#include "bundle.h"
+#include "convert.h"
+#include "io/image_io.h"
+#include "plan/render_plan.h"
+#include "scene/scene_loader.h"
+#include "sha256.h"
+#include "tessera/v1/tessera.grpc.pb.h"
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+const std::string kCornell = std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json";
+// Small enough for two cores, with several tiles so that several workers share a frame.
+const std::vector<std::string> kSmall = {"--width", "64", "--height",    "64",
+                                         "--spp",   "4",  "--tile-size", "16"};
+// Enough work (64 tiles) that a crash can happen in the middle of the job.
+const std::vector<std::string> kMedium = {"--width", "128", "--height",    "128",
+                                          "--spp",   "24",  "--tile-size", "16"};
+
+std::string ReadFile(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// How many processes (other than this one) have `text` in their command line.
+int ProcessesMentioning(const std::string& text) {
+    int count = 0;
+    std::error_code ec;  // processes come and go while we look
+    for (fs::directory_iterator it("/proc", ec), end; !ec && it != end; it.increment(ec)) {
+        const fs::directory_entry& e = *it;
+        std::string name = e.path().filename().string();
+        if (name.find_first_not_of("0123456789") != std::string::npos ||
+            name == std::to_string(::getpid()))
+            continue;
+        std::string cmdline = ReadFile(e.path() / "cmdline");
+        if (cmdline.find(text) != std::string::npos) ++count;
+    }
+    return count;
+}
+
+std::string Join(const std::vector<std::string>& parts) {
+    std::string out;
+    for (const std::string& p : parts) out += (out.empty() ? "" : " ") + p;
+    return out;
+}
+
+// A child process in a process group of its own, which dies with the test
+// (PR_SET_PDEATHSIG) and is killed with its group when the object goes.
+class Process {
+  public:
+    Process(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err)
+        : argv_(argv) {
+        std::vector<char*> args;
+        for (const std::string& a : argv_) args.push_back(const_cast<char*>(a.c_str()));
+        args.push_back(nullptr);
+        std::string out_s = out.string(), err_s = err.string();
+        pid_t parent = ::getpid();
+        pid_ = ::fork();
+        if (pid_ == 0) {
+            ::setpgid(0, 0);
+            ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+            if (::getppid() != parent) ::_exit(127);
+            sigset_t none;
+            sigemptyset(&none);
+            ::sigprocmask(SIG_SETMASK, &none, nullptr);
+            // dup2, not freopen: freopen would flush a copy of the test's stdout buffer.
+            int in = ::open("/dev/null", O_RDONLY);
+            int out_fd = ::open(out_s.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+            int err_fd = ::open(err_s.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+            if (in < 0 || out_fd < 0 || err_fd < 0) ::_exit(126);
+            ::dup2(in, STDIN_FILENO);
+            ::dup2(out_fd, STDOUT_FILENO);
+            ::dup2(err_fd, STDERR_FILENO);
+            ::execv(args[0], args.data());
+            ::_exit(127);
+        }
+        if (pid_ > 0) ::setpgid(pid_, pid_);
+    }
+    ~Process() { Kill(SIGKILL); }
+
+    pid_t Pid() const { return pid_; }
+    const std::string& Program() const { return argv_.at(0); }
+
+    bool Running() {
+        if (exited_) return false;
+        int status = 0;
+        if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+            exited_ = true;
+            status_ = status;
+        }
+        return !exited_;
+    }
+
+    // Exit code, or -1 for a signal / a timeout (then the process is killed).
+    int Wait(std::chrono::milliseconds timeout) {
+        auto deadline = Clock::now() + timeout;
+        while (Running() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
+        if (Running()) {
+            Kill(SIGKILL);
+            return -1;
+        }
+        return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
+    }
+
+    void Kill(int sig) {
+        if (pid_ <= 0 || exited_) return;
+        ::kill(-pid_, sig);
+        ::kill(pid_, sig);
+        if (sig == SIGKILL) {
+            int status = 0;
+            ::waitpid(pid_, &status, 0);
+            exited_ = true;
+            status_ = status;
+        }
+    }
+
+  private:
+    std::vector<std::string> argv_;
+    pid_t pid_ = -1;
+    bool exited_ = false;
+    int status_ = 0;
+};
+
+struct CliResult {
+    int code = -1;
+    std::string out, err;
+};
+
+struct Stubs {
+    explicit Stubs(int port) {
+        auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port),
+                                           grpc::InsecureChannelCredentials());
+        farm = v1::Farm::NewStub(channel);
+        blobs = v1::BlobStore::NewStub(channel);
+        workers = v1::Workers::NewStub(channel);
+    }
+    std::unique_ptr<v1::Farm::Stub> farm;
+    std::unique_ptr<v1::BlobStore::Stub> blobs;
+    std::unique_ptr<v1::Workers::Stub> workers;
+};
+
+// A deadline for one unary call.
+struct Ctx : grpc::ClientContext {
+    explicit Ctx(std::chrono::milliseconds timeout = 10s) {
+        set_deadline(std::chrono::system_clock::now() + timeout);
+    }
+};
+
+// The render options of `tessera render`-style arguments, for the gRPC API.
+v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
+    RenderOverrides o;
+    for (size_t i = 0; i + 1 < args.size(); i += 2) {
+        int value = std::stoi(args[i + 1]);
+        if (args[i] == "--width") o.width = value;
+        if (args[i] == "--height") o.height = value;
+        if (args[i] == "--spp") o.spp = value;
+        if (args[i] == "--tile-size") o.tile_size = value;
+    }
+    return ToProto(o);
+}
+
+class FarmTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() /
+               ("tessera_farm_" + std::to_string(::getpid()) + "_" +
+                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+    }
+
+    void TearDown() override {
+        processes_.clear();  // kills every process group
+        if (HasFailure() || std::getenv("TESSERA_KEEP_TEST_DIRS"))
+            std::fprintf(stderr, "logs and outputs kept in %s\n", dir_.c_str());
+        else
+            fs::remove_all(dir_);
+    }
+
+    Process& Start(const std::vector<std::string>& argv, const std::string& log_name) {
+        processes_.push_back(std::make_unique<Process>(argv, dir_ / (log_name + ".log"),
+                                                       dir_ / (log_name + ".log")));
+        return *processes_.back();
+    }
+
+    // Starts a coordinator on `state` (port 0: any free one) and returns its port.
+    int StartCoordinator(const std::string& state, int port = 0, int lease_ms = 0,
+                         Process** process = nullptr) {
+        fs::path port_file = dir_ / (state + ".port");
+        fs::remove(port_file);
+        std::vector<std::string> argv = {
+            TESSERA_COORDINATOR,     "--listen",         "127.0.0.1:" + std::to_string(port),
+            "--port-file",           port_file.string(), "--state",
+            (dir_ / state).string(), "--output",         (dir_ / (state + "-frames")).string()};
+        if (lease_ms > 0) {
+            argv.push_back("--lease-ms");
+            argv.push_back(std::to_string(lease_ms));
+        }
+        Process& p = Start(argv, state + "-" + std::to_string(++coordinator_starts_));
+        if (process) *process = &p;
+        auto deadline = Clock::now() + 30s;
+        while (Clock::now() < deadline) {
+            std::string text = ReadFile(port_file);
+            int read = 0;
+            if (!text.empty() && (std::istringstream(text) >> read) && read > 0 &&
+                ReadFile(port_file) == text)
+                return read;
+            if (!p.Running()) break;
+            std::this_thread::sleep_for(10ms);
+        }
+        ADD_FAILURE() << "the coordinator did not write " << port_file << ":\n"
+                      << ReadFile(dir_ /
+                                  (state + "-" + std::to_string(coordinator_starts_) + ".log"));
+        return 0;
+    }
+
+    Process& StartWorker(int port, const std::string& name, int threads = 1) {
+        return Start({TESSERA_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port),
+                      "--threads", std::to_string(threads), "--name", name, "--cache",
+                      (dir_ / ("cache-" + name)).string()},
+                     name);
+    }
+
+    // Runs the `tessera` command to its end (at most `timeout`).
+    CliResult Cli(const std::vector<std::string>& args, std::chrono::milliseconds timeout = 90s) {
+        std::vector<std::string> argv = {TESSERA_CLI};
+        argv.insert(argv.end(), args.begin(), args.end());
+        std::string id = std::to_string(++cli_runs_);
+        fs::path out = dir_ / ("cli-" + id + ".out"), err = dir_ / ("cli-" + id + ".err");
+        Process run(argv, out, err);
+        CliResult r;
+        r.code = run.Wait(timeout);
+        r.out = ReadFile(out);
+        r.err = ReadFile(err);
+        return r;
+    }
+
+    // `tessera render` of frame `frame` with `args` into the test's folder.
+    fs::path RenderLocal(const std::vector<std::string>& args, int frame = 0) {
+        fs::path out = dir_ / ("local-" + std::to_string(++local_renders_) + ".exr");
+        std::vector<std::string> cli = {
+            "render", kCornell, "-q", "-o", out.string(), "--frame", std::to_string(frame)};
+        cli.insert(cli.end(), args.begin(), args.end());
+        CliResult r = Cli(cli);
+        EXPECT_EQ(r.code, 0) << r.err;
+        return out;
+    }
+
+    // Uploads the Cornell box's bundle and submits it through the API.
+    std::string SubmitCornell(Stubs& s, const std::vector<std::string>& args) {
+        v1::SubmitJobRequest req;
+        v1::JobSpec* spec = req.mutable_spec();
+        spec->set_name("cornell");
+        for (const BundleEntry& e : CollectBundle(kCornell)) {
+            EXPECT_EQ(UploadFile(*s.blobs, e.local_path), e.hash);
+            if (spec->scene_path().empty()) spec->set_scene_path(e.path);
+            v1::BundleFile* f = spec->add_files();
+            f->set_path(e.path);
+            f->set_hash(e.hash);
+            f->set_size(e.size);
+        }
+        *spec->mutable_options() = OptionsFromArgs(args);
+        Ctx ctx(60s);
+        v1::SubmitJobResponse resp;
+        grpc::Status st = s.farm->SubmitJob(&ctx, req, &resp);
+        EXPECT_TRUE(st.ok()) << StatusText(st);
+        return resp.job_id();
+    }
+
+    // Polls the job until `done` says so (true) or `timeout` passes (false). A call that
+    // fails (the coordinator restarting) counts as "not yet".
+    bool PollJob(Stubs& s, const std::string& job_id,
+                 const std::function<bool(const v1::JobStatus&)>& done,
+                 std::chrono::milliseconds timeout, v1::JobStatus* last = nullptr) {
+        auto deadline = Clock::now() + timeout;
+        while (Clock::now() < deadline) {
+            Ctx ctx(2s);
+            v1::GetJobRequest req;
+            req.set_job_id(job_id);
+            v1::JobStatus status;
+            if (s.farm->GetJob(&ctx, req, &status).ok()) {
+                if (last) *last = status;
+                if (done(status)) return true;
+            }
+            std::this_thread::sleep_for(20ms);
+        }
+        return false;
+    }
+
+    bool WaitDone(Stubs& s, const std::string& job_id, v1::JobStatus* last,
+                  std::chrono::milliseconds timeout = 90s) {
+        bool finished = PollJob(
+            s, job_id,
+            [](const v1::JobStatus& j) {
+                return j.state() == v1::JOB_STATE_DONE || j.state() == v1::JOB_STATE_FAILED ||
+                       j.state() == v1::JOB_STATE_CANCELLED;
+            },
+            timeout, last);
+        EXPECT_TRUE(finished) << "job " << job_id
+                              << " did not finish; last: " << last->ShortDebugString();
+        EXPECT_EQ(last->state(), v1::JOB_STATE_DONE) << last->ShortDebugString();
+        return finished && last->state() == v1::JOB_STATE_DONE;
+    }
+
+    // Downloads a finished frame's EXR through the API.
+    fs::path Download(Stubs& s, const std::string& job_id, int frame) {
+        grpc::ClientContext ctx;
+        ctx.set_deadline(std::chrono::system_clock::now() + 30s);
+        v1::DownloadFrameRequest req;
+        req.set_job_id(job_id);
+        req.set_frame(frame);
+        auto reader = s.farm->DownloadFrame(&ctx, req);
+        std::string bytes;
+        v1::FileChunk chunk;
+        while (reader->Read(&chunk)) bytes += chunk.data();
+        grpc::Status st = reader->Finish();
+        EXPECT_TRUE(st.ok()) << StatusText(st);
+        fs::path path = dir_ / ("farm-" + job_id + "-" + std::to_string(frame) + ".exr");
+        std::ofstream(path, std::ios::binary) << bytes;
+        return path;
+    }
+
+    fs::path dir_;
+    std::vector<std::unique_ptr<Process>> processes_;
+    int coordinator_starts_ = 0, cli_runs_ = 0, local_renders_ = 0;
+};
+
+// Same size, same channels, same bits in every pixel of every channel (the header's
+// render time may differ).
+void ExpectSameImage(const fs::path& expected, const fs::path& actual) {
+    ASSERT_TRUE(fs::exists(expected)) << expected;
+    ASSERT_TRUE(fs::exists(actual)) << actual;
+    Image a = ReadImage(expected.string()), b = ReadImage(actual.string());
+    ASSERT_EQ(a.width, b.width);
+    ASSERT_EQ(a.height, b.height);
+    ASSERT_EQ(a.channels, b.channels);
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    size_t differ = 0, first = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+        if (std::memcmp(&a.pixels[i], &b.pixels[i], sizeof(float)) != 0 && differ++ == 0) first = i;
+    }
+    EXPECT_EQ(differ, 0u) << "floats differ between " << expected << " and " << actual
+                          << "; first at index " << first << " (channel "
+                          << a.channels[first % a.channels.size()] << "): " << a.pixels[first]
+                          << " vs " << b.pixels[first];
+}
+
+std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+}
+
+std::string Trim(const std::string& s) {
+    size_t end = s.find_last_not_of(" \n\r\t");
+    return end == std::string::npos ? "" : s.substr(0, end + 1);
+}
+
+// submit, watch, status and fetch as a user types them, against three workers.
+TEST_F(FarmTest, ThreeWorkersMatchTheLocalRender) {
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    for (int i = 1; i <= 3; ++i) StartWorker(port, "w" + std::to_string(i));
+    std::string address = "127.0.0.1:" + std::to_string(port);
+
+    // Enough tiles that all three workers get some.
+    CliResult submit =
+        Cli(Concat({"submit", kCornell, "--coordinator", address, "--name", "box"}, kMedium));
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    std::string job_id = Trim(submit.out);
+    ASSERT_FALSE(job_id.empty());
+    EXPECT_EQ(job_id.find('\n'), std::string::npos) << "stdout holds only the id: " << submit.out;
+
+    CliResult watch = Cli({"watch", job_id, "--coordinator", address});
+    EXPECT_EQ(watch.code, 0) << watch.err;
+
+    CliResult status = Cli({"status", job_id, "--coordinator", address});
+    EXPECT_EQ(status.code, 0) << status.err;
+    EXPECT_NE(status.out.find("DONE"), std::string::npos) << status.out;
+    CliResult table = Cli({"status", "--coordinator", address});
+    EXPECT_NE(table.out.find(job_id), std::string::npos) << table.out;
+
+    fs::path out = dir_ / "frames";
+    CliResult fetch = Cli({"fetch", job_id, "-o", out.string(), "--coordinator", address});
+    ASSERT_EQ(fetch.code, 0) << fetch.err;
+    ExpectSameImage(RenderLocal(kMedium), out / "box.0000.exr");
+}
+
+TEST_F(FarmTest, OneWorkerMatchesTheLocalRender) {
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    StartWorker(port, "only", 2);
+    std::string address = "127.0.0.1:" + std::to_string(port);
+    CliResult submit =
+        Cli(Concat({"submit", kCornell, "--coordinator", address, "--watch"}, kSmall));
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    std::string job_id = Trim(submit.out);
+    fs::path out = dir_ / "frames";
+    CliResult fetch =
+        Cli({"fetch", job_id, "-o", out.string(), "--preview", "--coordinator", address});
+    ASSERT_EQ(fetch.code, 0) << fetch.err;
+    EXPECT_TRUE(fs::exists(out / "cornell-box.0000.png"));
+    ExpectSameImage(RenderLocal(kSmall), out / "cornell-box.0000.exr");
+}
+
+// The README's command: a whole farm on this machine, two frames.
+TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
+    fs::path out = dir_ / "frames";
+    CliResult farm =
+        Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
+                    "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string()},
+                   kSmall),
+            120s);
+    ASSERT_EQ(farm.code, 0) << farm.err;
+    ExpectSameImage(RenderLocal(kSmall, 0), out / "cornell-box.0000.exr");
+    ExpectSameImage(RenderLocal(kSmall, 1), out / "cornell-box.0001.exr");
+    EXPECT_TRUE(fs::exists(out / "cornell-box.0001.png"));
+    // The coordinator and the workers went with it.
+    EXPECT_EQ(ProcessesMentioning((dir_ / "farm-state").string()), 0);
+}
+
+// `tessera farm` stopped by Ctrl-C, or killed outright, leaves no process behind.
+TEST_F(FarmTest, FarmCommandLeavesNothingRunning) {
+    for (int sig : {SIGINT, SIGKILL}) {
+        SCOPED_TRACE(strsignal(sig));
+        fs::path state = dir_ / ("state-" + std::to_string(sig));
+        Process& farm =
+            Start({TESSERA_CLI, "farm", kCornell, "--workers", "2", "--threads-per-worker", "1",
+                   "--width", "128", "--height", "128", "--spp", "256", "--tile-size", "16", "-o",
+                   (dir_ / "frames").string(), "--keep-state", state.string()},
+                  "farm-" + std::to_string(sig));
+        // Wait until it renders: a coordinator that serves and a task done.
+        auto deadline = Clock::now() + 60s;
+        bool rendering = false;
+        while (!rendering && farm.Running() && Clock::now() < deadline) {
+            std::this_thread::sleep_for(50ms);
+            int port = 0;
+            if (!(std::istringstream(ReadFile(state / "port")) >> port) || port <= 0) continue;
+            Stubs s(port);
+            Ctx ctx(2s);
+            v1::ListJobsResponse jobs;
+            rendering = s.farm->ListJobs(&ctx, v1::ListJobsRequest(), &jobs).ok() &&
+                        jobs.jobs_size() == 1 && jobs.jobs(0).tasks_done() >= 1;
+        }
+        ASSERT_TRUE(rendering) << ReadFile(dir_ / ("farm-" + std::to_string(sig) + ".log"));
+        ASSERT_EQ(ProcessesMentioning(state.string()), 4) << "tessera, a coordinator, two workers";
+        farm.Kill(sig);
+        if (sig == SIGINT) {
+            EXPECT_EQ(farm.Wait(20s), 130);
+        }
+        deadline = Clock::now() + 20s;
+        while (ProcessesMentioning(state.string()) > 0 && Clock::now() < deadline)
+            std::this_thread::sleep_for(50ms);
+        EXPECT_EQ(ProcessesMentioning(state.string()), 0) << "children outlived `tessera farm`";
+    }
+}
+
+TEST_F(FarmTest, KilledWorkerDoesNotStopTheJob) {
+    int port = StartCoordinator("state", 0, 1500);
+    ASSERT_GT(port, 0);
+    Process& doomed = StartWorker(port, "doomed");
+    StartWorker(port, "survivor");
+    Stubs s(port);
+    std::string job_id = SubmitCornell(s, kMedium);
+    v1::JobStatus status;
+    // Both workers (one thread each) at work: two leases out, so the doomed one holds one
+    // (unless it finishes its tile in the moment before the kill).
+    ASSERT_TRUE(PollJob(
+        s, job_id,
+        [](const v1::JobStatus& j) {
+            return j.tasks_done() >= 1 && j.leases_granted() - j.tasks_done() >= 2;
+        },
+        60s, &status))
+        << status.ShortDebugString();
+    ASSERT_LT(status.tasks_done(), status.tasks_total() - 2) << "no middle to kill the worker in";
+    doomed.Kill(SIGKILL);
+    int done_at_kill = status.tasks_done();
+    ASSERT_TRUE(WaitDone(s, job_id, &status));
+    std::printf("tasks %d, leases granted %lld (killed at %d done)\n", status.tasks_total(),
+                static_cast<long long>(status.leases_granted()), done_at_kill);
+    EXPECT_GE(status.leases_granted(), status.tasks_total());
+    ExpectSameImage(RenderLocal(kMedium), Download(s, job_id, 0));
+}
+
+TEST_F(FarmTest, CoordinatorRestartKeepsFinishedTiles) {
+    // Longer tiles than kMedium: `tessera watch` must be following before the kill.
+    const std::vector<std::string> settings = {"--width", "128", "--height",    "128",
+                                               "--spp",   "64",  "--tile-size", "16"};
+    Process* coordinator = nullptr;
+    int port = StartCoordinator("state", 0, 1500, &coordinator);
+    ASSERT_GT(port, 0);
+    constexpr int kWorkers = 2;
+    for (int i = 1; i <= kWorkers; ++i) StartWorker(port, "w" + std::to_string(i));
+    std::string job_id;
+    v1::JobStatus before;
+    Process* watch = nullptr;
+    {
+        Stubs s(port);
+        job_id = SubmitCornell(s, settings);
+        // `tessera watch` rides out the restart.
+        watch = &Start(
+            {TESSERA_CLI, "watch", job_id, "--coordinator", "127.0.0.1:" + std::to_string(port)},
+            "watch");
+        // Some tiles done, both workers busy, and the watch following.
+        ASSERT_TRUE(PollJob(
+            s, job_id,
+            [&](const v1::JobStatus& j) {
+                return j.tasks_done() >= 8 && j.leases_granted() - j.tasks_done() >= kWorkers &&
+                       ReadFile(dir_ / "watch.log").find(job_id) != std::string::npos;
+            },
+            60s, &before))
+            << before.ShortDebugString() << "\nwatch: " << ReadFile(dir_ / "watch.log");
+    }
+    ASSERT_LT(before.tasks_done(), before.tasks_total() - 4) << "no middle to kill it in";
+    coordinator->Kill(SIGKILL);
+    // The same state, the same port: the workers find it again by themselves.
+    ASSERT_EQ(StartCoordinator("state", port, 1500), port);
+    Stubs s(port);
+    v1::JobStatus after;
+    ASSERT_TRUE(PollJob(
+        s, job_id, [](const v1::JobStatus&) { return true; }, 10s, &after));
+    EXPECT_GE(after.tasks_done(), before.tasks_done()) << "finished tiles were lost";
+    ASSERT_TRUE(WaitDone(s, job_id, &after));
+    std::printf("tasks %d, done before the kill >= %d, leases granted %lld\n", after.tasks_total(),
+                before.tasks_done(), static_cast<long long>(after.leases_granted()));
+    // Only the tasks in flight at the kill may be leased again (one per worker thread),
+    // and perhaps once more each if the restart outlived a lease.
+    EXPECT_LE(after.leases_granted(), after.tasks_total() + 2 * kWorkers);
+    EXPECT_EQ(watch->Wait(30s), 0) << ReadFile(dir_ / "watch.log");
+    ExpectSameImage(RenderLocal(settings), Download(s, job_id, 0));
+}
+
+// A worker whose lease expired must not have its result accepted once the task was
+// given to another: fencing by lease id.
+TEST_F(FarmTest, StaleResultIsRejected) {
+    int port = StartCoordinator("state", 0, 300);
+    ASSERT_GT(port, 0);
+    Stubs s(port);
+    const std::vector<std::string> one_tile = {"--width", "16", "--height",    "16",
+                                               "--spp",   "4",  "--tile-size", "16"};
+    std::string job_id = SubmitCornell(s, one_tile);
+
+    auto register_worker = [&](const std::string& name) {
+        Ctx ctx;
+        v1::RegisterRequest req;
+        req.set_name(name);
+        req.set_threads(1);
+        v1::RegisterResponse resp;
+        grpc::Status st = s.workers->Register(&ctx, req, &resp);
+        EXPECT_TRUE(st.ok()) << StatusText(st);
+        return resp.worker_id();
+    };
+    auto lease = [&](const std::string& worker_id) {
+        auto deadline = Clock::now() + 20s;
+        while (Clock::now() < deadline) {
+            Ctx ctx;
+            v1::LeaseTaskRequest req;
+            req.set_worker_id(worker_id);
+            req.set_wait_ms(1000);
+            v1::LeaseTaskResponse resp;
+            grpc::Status st = s.workers->LeaseTask(&ctx, req, &resp);
+            EXPECT_TRUE(st.ok()) << StatusText(st);
+            if (!st.ok() || resp.has_task()) return resp.task();
+        }
+        ADD_FAILURE() << "no task leased within 20 s";
+        return v1::Task();
+    };
+    auto complete = [&](const std::string& worker_id, const v1::Task& task,
+                        const std::string& hash) {
+        Ctx ctx;
+        v1::CompleteTaskRequest req;
+        req.set_worker_id(worker_id);
+        req.set_task_id(task.task_id());
+        req.set_lease_id(task.lease_id());
+        req.set_result_hash(hash);
+        v1::CompleteTaskResponse resp;
+        return s.workers->CompleteTask(&ctx, req, &resp);
+    };
+
+    std::string first = register_worker("slow"), second = register_worker("fast");
+    v1::Task stale = lease(first);
+    ASSERT_GT(stale.task_id(), 0);
+    // `slow` stays silent; the lease runs out and `fast` gets the task.
+    v1::Task current = lease(second);
+    ASSERT_EQ(current.task_id(), stale.task_id());
+    EXPECT_NE(current.lease_id(), stale.lease_id());
+    EXPECT_EQ(current.attempt(), stale.attempt() + 1);
+
+    // The real result of the tile, rendered here as a worker would.
+    RenderOverrides overrides = FromProto(current.spec().options());
+    LoadedScene loaded = LoadSceneFile(kCornell, overrides);
+    loaded.settings.frame = current.frame();
+    FrameRenderer renderer(*loaded.scene, loaded.settings);
+    ScratchBuffer arena;
+    std::string result = EncodeTileResult(ExecuteTileTask(renderer, current.task_index(), arena));
+    std::string hash = UploadBlob(*s.blobs, result);
+
+    {
+        Ctx ctx;
+        v1::HeartbeatRequest req;
+        req.set_worker_id(first);
+        req.set_task_id(stale.task_id());
+        req.set_lease_id(stale.lease_id());
+        v1::HeartbeatResponse resp;
+        grpc::Status st = s.workers->Heartbeat(&ctx, req, &resp);
+        EXPECT_TRUE(!st.ok() || !resp.lease_valid()) << "an expired lease was reported valid";
+    }
+    grpc::Status st = complete(first, stale, hash);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << StatusText(st);
+    EXPECT_NE(st.error_message().find("lease"), std::string::npos) << st.error_message();
+
+    st = complete(second, current, hash);
+    EXPECT_TRUE(st.ok()) << StatusText(st);
+    v1::JobStatus status;
+    ASSERT_TRUE(WaitDone(s, job_id, &status, 30s));
+    EXPECT_EQ(status.tasks_done(), 1);
+    ExpectSameImage(RenderLocal(one_tile), Download(s, job_id, 0));
+}
+
+// Each bad request gets the status the contract names and a message about the problem;
+// the coordinator goes on serving.
+TEST_F(FarmTest, BadRequestsGetTheRightStatus) {
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    Stubs s(port);
+    std::string good = SubmitCornell(s, kSmall);
+    ASSERT_FALSE(good.empty());
+
+    // A valid spec to spoil, one field at a time.
+    v1::JobSpec base;
+    base.set_name("bad");
+    for (const BundleEntry& e : CollectBundle(kCornell)) {
+        if (base.scene_path().empty()) base.set_scene_path(e.path);
+        v1::BundleFile* f = base.add_files();
+        f->set_path(e.path);
+        f->set_hash(e.hash);
+        f->set_size(e.size);
+    }
+    *base.mutable_options() = OptionsFromArgs(kSmall);
+
+    auto still_serving = [&](const std::string& after) {
+        Ctx ctx;
+        v1::GetJobRequest req;
+        req.set_job_id(good);
+        v1::JobStatus status;
+        grpc::Status st = s.farm->GetJob(&ctx, req, &status);
+        EXPECT_TRUE(st.ok()) << "after " << after << ": " << StatusText(st);
+    };
+    auto expect_submit = [&](const std::string& what, const v1::JobSpec& spec,
+                             std::vector<grpc::StatusCode> codes,
+                             std::vector<std::string> mentions) {
+        Ctx ctx;
+        v1::SubmitJobRequest req;
+        *req.mutable_spec() = spec;
+        v1::SubmitJobResponse resp;
+        grpc::Status st = s.farm->SubmitJob(&ctx, req, &resp);
+        EXPECT_NE(std::find(codes.begin(), codes.end(), st.error_code()), codes.end())
+            << what << ": " << StatusText(st);
+        bool mentioned = false;
+        for (const std::string& m : mentions)
+            mentioned |= st.error_message().find(m) != std::string::npos;
+        EXPECT_TRUE(mentioned) << what << ": the message does not mention " << Join(mentions)
+                               << ": " << st.error_message();
+        still_serving(what);
+    };
+
+    // An id like the coordinator's own that names no job; and one that is no id at all.
+    const std::string unknown_id = "job-987654";
+    {
+        Ctx ctx;
+        v1::GetJobRequest req;
+        req.set_job_id(unknown_id);
+        v1::JobStatus status;
+        grpc::Status st = s.farm->GetJob(&ctx, req, &status);
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << StatusText(st);
+        EXPECT_NE(st.error_message().find(unknown_id), std::string::npos) << st.error_message();
+    }
+    {
+        Ctx ctx;
+        v1::GetJobRequest req;
+        req.set_job_id("no such job");
+        v1::JobStatus status;
+        grpc::Status st = s.farm->GetJob(&ctx, req, &status);
+        EXPECT_TRUE(st.error_code() == grpc::StatusCode::NOT_FOUND ||
+                    st.error_code() == grpc::StatusCode::INVALID_ARGUMENT)
+            << StatusText(st);
+        EXPECT_NE(st.error_message().find("no such job"), std::string::npos) << st.error_message();
+    }
+    {
+        Ctx ctx;
+        v1::CancelJobRequest req;
+        req.set_job_id(unknown_id);
+        v1::CancelJobResponse resp;
+        grpc::Status st = s.farm->CancelJob(&ctx, req, &resp);
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << StatusText(st);
+    }
+    still_serving("unknown jobs");
+    {
+        // No worker runs, so the good job's frame is not done.
+        Ctx ctx;
+        v1::DownloadFrameRequest req;
+        req.set_job_id(good);
+        auto reader = s.farm->DownloadFrame(&ctx, req);
+        v1::FileChunk chunk;
+        while (reader->Read(&chunk)) {
+        }
+        EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+    }
+
+    v1::JobSpec spec = base;
+    spec.mutable_options()->set_spp(0);
+    expect_submit("spp 0", spec, {grpc::StatusCode::INVALID_ARGUMENT}, {"spp"});
+    spec.mutable_options()->set_spp(-3);
+    expect_submit("spp -3", spec, {grpc::StatusCode::INVALID_ARGUMENT}, {"spp"});
+
+    spec = base;
+    spec.mutable_options()->set_width(1000000);
+    spec.mutable_options()->set_height(1000000);
+    expect_submit("a 10^6 x 10^6 image", spec,
+                  {grpc::StatusCode::RESOURCE_EXHAUSTED, grpc::StatusCode::INVALID_ARGUMENT},
+                  {"width", "height", "resolution", "1000000"});
+
+    spec = base;
+    spec.set_frame_start(5);
+    spec.set_frame_end(2);
+    expect_submit("frames 5-2", spec, {grpc::StatusCode::INVALID_ARGUMENT}, {"frame"});
+
+    spec = base;
+    std::string never = Sha256Hex("never uploaded");
+    v1::BundleFile* extra = spec.add_files();
+    extra->set_path("textures/missing.png");
+    extra->set_hash(never);
+    extra->set_size(14);
+    expect_submit("a blob never uploaded", spec, {grpc::StatusCode::NOT_FOUND},
+                  {never, "missing.png"});
+
+    spec = base;
+    spec.set_scene_path("../x.json");
+    spec.mutable_files(0)->set_path("../x.json");
+    expect_submit("a scene path escaping its folder", spec, {grpc::StatusCode::INVALID_ARGUMENT},
+                  {"../x.json", "escape"});
+
+    spec = base;
+    spec.set_name("../../etc/passwd");
+    expect_submit("a name that is a path", spec, {grpc::StatusCode::INVALID_ARGUMENT}, {"name"});
+
+    {
+        // Bytes that do not match the hash they claim.
+        grpc::ClientContext ctx;
+        ctx.set_deadline(std::chrono::system_clock::now() + 10s);
+        v1::PutBlobResponse resp;
+        auto writer = s.blobs->PutBlob(&ctx, &resp);
+        v1::PutBlobRequest header;
+        header.mutable_header()->set_hash(Sha256Hex("hello"));
+        header.mutable_header()->set_size(5);
+        writer->Write(header);
+        v1::PutBlobRequest data;
+        data.set_data("hellO");
+        writer->Write(data);
+        writer->WritesDone();
+        grpc::Status st = writer->Finish();
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << StatusText(st);
+        EXPECT_FALSE(st.error_message().empty());
+
+        Ctx find_ctx;
+        v1::FindMissingBlobsRequest find;
+        find.add_hashes(Sha256Hex("hello"));
+        v1::FindMissingBlobsResponse missing;
+        ASSERT_TRUE(s.blobs->FindMissingBlobs(&find_ctx, find, &missing).ok());
+        EXPECT_EQ(missing.missing_size(), 1) << "a corrupted upload was kept";
+        still_serving("a corrupted blob");
+    }
+
+    // The command line reports the status by name and exits non-zero.
+    std::string address = "127.0.0.1:" + std::to_string(port);
+    CliResult unknown = Cli({"status", unknown_id, "--coordinator", address});
+    EXPECT_NE(unknown.code, 0);
+    EXPECT_NE(unknown.err.find("NOT_FOUND"), std::string::npos) << unknown.err;
+
+    // A cancelled job ends `watch` with a failure status.
+    CliResult cancel = Cli({"cancel", good, "--coordinator", address});
+    EXPECT_EQ(cancel.code, 0) << cancel.err;
+    CliResult watch = Cli({"watch", good, "--coordinator", address});
+    EXPECT_NE(watch.code, 0);
+    EXPECT_NE(watch.err.find("cancelled"), std::string::npos) << watch.err;
+    still_serving("the cancellation");
+}
+
+}  // namespace
+}  // namespace tessera

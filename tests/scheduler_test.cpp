@@ -1,0 +1,415 @@
+// Scheduler tests, no sockets and no real time: leases and their order, expiry under a
+// fake clock, fencing of stale leases, retries that fail a job with the worker's
+// message, cancellation, lease counting, and state surviving a reopen of the database.
+
+#include "scheduler.h"
+
+#include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <set>
+
+#include "errors.h"
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Warnings and errors only: an info line per lease would drown the test output.
+class QuietLogs : public ::testing::Environment {
+    void SetUp() override { spdlog::set_level(spdlog::level::warn); }
+};
+::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+
+class FakeClock final : public Clock {
+  public:
+    int64_t NowMs() const override { return now; }
+    int64_t now = 1'700'000'000'000;
+};
+
+struct RecordingListener final : SchedulerListener {
+    void OnWorkAvailable() override { ++work; }
+    void OnJobChanged(const std::string& job, const std::string& message) override {
+        changes.push_back(job + ": " + message);
+    }
+    void OnFrameReady(const std::string& job, int frame) override {
+        ready.emplace_back(job, frame);
+    }
+    int work = 0;
+    std::vector<std::string> changes;
+    std::vector<std::pair<std::string, int>> ready;
+};
+
+// A job of `frames` frames, each of width/32 x height/32 tiles of 32 pixels.
+NewJob MakeJob(const std::string& name, int priority, int frames = 1, int width = 64,
+               int height = 32) {
+    NewJob job;
+    job.name = name;
+    job.priority = priority;
+    v1::JobSpec spec;
+    spec.set_name(name);
+    spec.set_scene_path("scene.json");
+    spec.set_priority(priority);
+    job.spec = spec.SerializeAsString();
+    job.settings.width = width;
+    job.settings.height = height;
+    job.settings.spp = 4;
+    job.settings.tile_size = 32;
+    job.settings.integrator = "path";
+    job.settings.sampler = "stratified";
+    job.settings.scene_name = "scene.json";
+    job.frame_start = 1;
+    job.frame_end = frames;
+    job.tasks_per_frame = static_cast<int>(MakeTiles({width, height}, 32).size());
+    return job;
+}
+
+#define EXPECT_ERROR(statement, code, text)                                             \
+    do {                                                                                \
+        try {                                                                           \
+            statement;                                                                  \
+            ADD_FAILURE() << #statement " did not throw";                               \
+        } catch (const CoordinatorError& e) {                                           \
+            EXPECT_EQ(static_cast<int>(e.Code()), static_cast<int>(code)) << e.what();  \
+            EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what(); \
+        }                                                                               \
+    } while (0)
+
+class SchedulerTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir_ = fs::temp_directory_path() /
+               ("tessera_scheduler_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+        Open();
+    }
+    void TearDown() override {
+        scheduler_.reset();
+        fs::remove_all(dir_);
+    }
+    void Open() {
+        scheduler_.reset();
+        scheduler_ = std::make_unique<Scheduler>(DbPath(), options_, clock_);
+        scheduler_->SetListener(&listener_);
+    }
+    std::string DbPath() const { return (dir_ / "tessera.db").string(); }
+    Scheduler& S() { return *scheduler_; }
+    LeasedTask Lease(const std::string& worker) {
+        std::optional<LeasedTask> t = S().TryLease(worker);
+        EXPECT_TRUE(t.has_value());
+        return t.value_or(LeasedTask{});
+    }
+
+    fs::path dir_;
+    FakeClock clock_;
+    SchedulerOptions options_{.lease_ms = 1000, .max_attempts = 3};
+    RecordingListener listener_;
+    std::unique_ptr<Scheduler> scheduler_;
+};
+
+TEST_F(SchedulerTest, RegisterReturnsIdsAndTimings) {
+    WorkerRegistration a = S().RegisterWorker("alpha", 4);
+    WorkerRegistration b = S().RegisterWorker("beta", 2);
+    EXPECT_NE(a.worker_id, b.worker_id);
+    EXPECT_EQ(a.lease_duration_ms, 1000);
+    EXPECT_EQ(a.heartbeat_interval_ms, 333);
+    EXPECT_ERROR(S().RegisterWorker(std::string("bad\nname"), 1), ErrorCode::kInvalidArgument,
+                 "control character");
+}
+
+TEST_F(SchedulerTest, LeaseCarriesTaskSpecAndDeadline) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    EXPECT_FALSE(S().TryLease(w).has_value());
+    std::string job = S().AddJob(MakeJob("shot", 0, 2));
+    EXPECT_GE(listener_.work, 1);
+    LeasedTask t = Lease(w);
+    EXPECT_EQ(t.job_id, job);
+    EXPECT_EQ(t.frame, 1);
+    EXPECT_EQ(t.task_index, 0);
+    EXPECT_EQ(t.stage, "render");
+    EXPECT_EQ(t.attempt, 1);
+    EXPECT_EQ(t.spec->name(), "shot");
+    EXPECT_EQ(t.deadline_ms, clock_.now + 1000);
+    LeasedTask u = Lease(w);
+    EXPECT_GT(u.lease_id, t.lease_id);
+    EXPECT_EQ(u.task_index, 1);
+    EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+    EXPECT_EQ(S().GetJob(job).frames(0).state(), v1::FRAME_STATE_RENDERING);
+    EXPECT_EQ(S().GetJob(job).frames(1).state(), v1::FRAME_STATE_PENDING);
+}
+
+TEST_F(SchedulerTest, UnknownAndMalformedIdsAreRejected) {
+    EXPECT_ERROR(S().TryLease("w-99"), ErrorCode::kNotFound, "register again");
+    EXPECT_ERROR(S().TryLease("nonsense"), ErrorCode::kInvalidArgument, "malformed worker id");
+    EXPECT_ERROR(S().Heartbeat("w-99", 0, 0), ErrorCode::kNotFound, "unknown worker");
+    EXPECT_ERROR(S().GetJob("job-42"), ErrorCode::kNotFound, "no job job-42");
+    EXPECT_ERROR(S().GetJob("42"), ErrorCode::kInvalidArgument, "malformed job id");
+    EXPECT_ERROR(S().GetJob(""), ErrorCode::kInvalidArgument, "empty");
+    EXPECT_ERROR(S().Cancel("job-x"), ErrorCode::kInvalidArgument, "malformed");
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    EXPECT_ERROR(S().Complete(w, 12345, 1, std::string(64, 'a')), ErrorCode::kNotFound,
+                 "unknown task 12345");
+}
+
+TEST_F(SchedulerTest, HigherPriorityFirstThenSubmissionFrameAndTaskOrder) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string low = S().AddJob(MakeJob("low", 0, 1));
+    std::string high1 = S().AddJob(MakeJob("high1", 5, 2));
+    std::string high2 = S().AddJob(MakeJob("high2", 5, 1));
+    std::vector<std::tuple<std::string, int, int>> order;
+    while (std::optional<LeasedTask> t = S().TryLease(w))
+        order.emplace_back(t->job_id, t->frame, t->task_index);
+    std::vector<std::tuple<std::string, int, int>> expected = {
+        {high1, 1, 0}, {high1, 1, 1}, {high1, 2, 0}, {high1, 2, 1},
+        {high2, 1, 0}, {high2, 1, 1}, {low, 1, 0},   {low, 1, 1}};
+    EXPECT_EQ(order, expected);
+}
+
+TEST_F(SchedulerTest, HeartbeatExtendsLeaseAndSweepExpiresIt) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    clock_.now += 900;
+    EXPECT_TRUE(S().Heartbeat(w, t.task_id, t.lease_id).lease_valid);
+    clock_.now += 900;  // 1800 after the lease; the heartbeat moved the deadline to 1900
+    EXPECT_EQ(S().Sweep(), 0);
+    clock_.now += 100;
+    int work_before = listener_.work;
+    EXPECT_EQ(S().Sweep(), 1);
+    EXPECT_GT(listener_.work, work_before);
+    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id);
+    EXPECT_FALSE(r.lease_valid);
+    EXPECT_FALSE(r.cancelled);
+    // The task is pending again, first in line, on its second attempt.
+    LeasedTask again = Lease(w);
+    EXPECT_EQ(again.task_id, t.task_id);
+    EXPECT_EQ(again.attempt, 2);
+    EXPECT_EQ(S().GetJob(job).leases_granted(), 2);
+}
+
+TEST_F(SchedulerTest, StaleLeaseIsFencedAfterExpiryAndReLease) {
+    std::string slow = S().RegisterWorker("slow", 1).worker_id;
+    std::string fast = S().RegisterWorker("fast", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask old_lease = Lease(slow);
+    clock_.now += 1001;
+    EXPECT_EQ(S().Sweep(), 1);
+    LeasedTask new_lease = Lease(fast);
+    ASSERT_EQ(new_lease.task_id, old_lease.task_id);
+    EXPECT_GT(new_lease.lease_id, old_lease.lease_id);
+    const std::string hash(64, 'a');
+    EXPECT_ERROR(S().Complete(slow, old_lease.task_id, old_lease.lease_id, hash),
+                 ErrorCode::kFailedPrecondition, "stale lease");
+    EXPECT_ERROR(S().Fail(slow, old_lease.task_id, old_lease.lease_id, "late"),
+                 ErrorCode::kFailedPrecondition, "now under lease");
+    EXPECT_ERROR(S().CheckLease(old_lease.task_id, old_lease.lease_id),
+                 ErrorCode::kFailedPrecondition, "stale lease");
+    EXPECT_NO_THROW(S().CheckLease(new_lease.task_id, new_lease.lease_id));
+    S().Complete(fast, new_lease.task_id, new_lease.lease_id, hash);
+    EXPECT_ERROR(S().Complete(fast, new_lease.task_id, new_lease.lease_id, hash),
+                 ErrorCode::kFailedPrecondition, "already done");
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(st.tasks_done(), 1);
+    EXPECT_TRUE(st.failures().empty());  // expiry is not a failure
+}
+
+TEST_F(SchedulerTest, FrameReadyWhenAllTasksDoneAndJobDoneWhenAllFramesWritten) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 2));
+    std::vector<LeasedTask> tasks;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) tasks.push_back(*t);
+    ASSERT_EQ(tasks.size(), 4u);
+    // Out of order: frame 2 completes first.
+    for (int i : {3, 2, 1, 0})
+        S().Complete(w, tasks[i].task_id, tasks[i].lease_id, std::string(64, 'a' + i));
+    ASSERT_EQ(listener_.ready.size(), 2u);
+    EXPECT_EQ(listener_.ready[0], std::make_pair(job, 2));
+    EXPECT_EQ(listener_.ready[1], std::make_pair(job, 1));
+    FrameAssemblyInput in = S().GetAssemblyInput(job, 1);
+    EXPECT_TRUE(in.job_running);
+    ASSERT_EQ(in.results.size(), 2u);
+    EXPECT_EQ(in.results[0], std::make_pair(0, std::string(64, 'a')));
+    EXPECT_EQ(in.results[1], std::make_pair(1, std::string(64, 'b')));
+    EXPECT_ERROR(S().FrameExrPath(job, 1), ErrorCode::kNotFound, "not done");
+    S().FrameWritten(job, 1, "/out/shot.0001.exr");
+    EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+    S().FrameWritten(job, 2, "/out/shot.0002.exr");
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_DONE);
+    EXPECT_EQ(st.tasks_done(), 4);
+    EXPECT_EQ(st.leases_granted(), 4);
+    EXPECT_GT(st.finished_unix_ms(), 0);
+    EXPECT_EQ(st.frames(1).exr_path(), "/out/shot.0002.exr");
+    EXPECT_EQ(S().FrameExrPath(job, 1), "/out/shot.0001.exr");
+}
+
+TEST_F(SchedulerTest, TaskFailingMaxAttemptsFailsItsJobWithTheWorkersMessage) {
+    std::vector<std::string> workers = {S().RegisterWorker("alpha", 1).worker_id,
+                                        S().RegisterWorker("beta", 1).worker_id,
+                                        S().RegisterWorker("gamma", 1).worker_id};
+    std::string job = S().AddJob(MakeJob("shot", 0, 2));
+    LeasedTask other = Lease(workers[0]);  // task 0 stays leased meanwhile
+    for (int attempt = 1; attempt <= 3; ++attempt) {
+        LeasedTask t = Lease(workers[attempt - 1]);
+        EXPECT_EQ(t.task_index, 1);
+        EXPECT_EQ(t.attempt, attempt);
+        S().Fail(workers[attempt - 1], t.task_id, t.lease_id,
+                 "out of memory #" + std::to_string(attempt));
+        if (attempt < 3) {
+            EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+        }
+    }
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(st.error().find("out of memory #3"), std::string::npos) << st.error();
+    EXPECT_NE(st.error().find("gamma"), std::string::npos) << st.error();
+    ASSERT_EQ(st.failures_size(), 3);
+    EXPECT_EQ(st.failures(0).worker(), "gamma");
+    EXPECT_EQ(st.failures(0).message(), "out of memory #3");
+    EXPECT_EQ(st.failures(0).attempt(), 3);
+    EXPECT_EQ(st.failures(2).worker(), "alpha");
+    EXPECT_EQ(st.failures(2).task_index(), 1);
+    EXPECT_EQ(st.frames(0).state(), v1::FRAME_STATE_FAILED);
+    // Nothing of the failed job is handed out any more; its last lease is revoked.
+    EXPECT_FALSE(S().TryLease(workers[0]).has_value());
+    EXPECT_FALSE(S().Heartbeat(workers[0], other.task_id, other.lease_id).lease_valid);
+    EXPECT_ERROR(S().Complete(workers[0], other.task_id, other.lease_id, std::string(64, 'a')),
+                 ErrorCode::kFailedPrecondition, "job failed");
+}
+
+TEST_F(SchedulerTest, CancellationRevokesLeasesAndStopsLeasing) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string doomed = S().AddJob(MakeJob("doomed", 9, 2));
+    std::string kept = S().AddJob(MakeJob("kept", 0, 1));
+    LeasedTask t = Lease(w);
+    ASSERT_EQ(t.job_id, doomed);
+    v1::JobStatus st = S().Cancel(doomed);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_CANCELLED);
+    EXPECT_GT(st.finished_unix_ms(), 0);
+    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id);
+    EXPECT_FALSE(r.lease_valid);
+    EXPECT_TRUE(r.cancelled);
+    EXPECT_ERROR(S().Complete(w, t.task_id, t.lease_id, std::string(64, 'a')),
+                 ErrorCode::kFailedPrecondition, "cancelled");
+    // Only the other job's tasks remain.
+    std::set<std::string> jobs;
+    while (std::optional<LeasedTask> n = S().TryLease(w)) jobs.insert(n->job_id);
+    EXPECT_EQ(jobs, std::set<std::string>{kept});
+    // Cancelling again, or a finished job, changes nothing.
+    EXPECT_EQ(S().Cancel(doomed).state(), v1::JOB_STATE_CANCELLED);
+    EXPECT_EQ(S().GetJob(doomed).leases_granted(), 1);
+}
+
+TEST_F(SchedulerTest, ReleasedLeaseIsNotCounted) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    S().Release(t.task_id, t.lease_id);
+    EXPECT_EQ(S().GetJob(job).leases_granted(), 0);
+    LeasedTask again = Lease(w);
+    EXPECT_EQ(again.task_id, t.task_id);
+    EXPECT_EQ(again.attempt, 1);
+}
+
+TEST_F(SchedulerTest, LeasesGrantedEqualsTasksWithoutReLeases) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 3, 100, 70));  // 4x3 tiles x 3 frames
+    int n = 0;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) {
+        S().Complete(w, t->task_id, t->lease_id, std::string(64, 'c'));
+        ++n;
+    }
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(n, 36);
+    EXPECT_EQ(st.tasks_total(), 36);
+    EXPECT_EQ(st.tasks_done(), 36);
+    EXPECT_EQ(st.leases_granted(), 36);
+}
+
+TEST_F(SchedulerTest, RestartKeepsStateLeasesAndFinishedWork) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 2));
+    std::vector<LeasedTask> tasks;
+    for (int i = 0; i < 3; ++i) tasks.push_back(Lease(w));
+    S().Complete(w, tasks[0].task_id, tasks[0].lease_id, std::string(64, 'a'));
+    S().Complete(w, tasks[1].task_id, tasks[1].lease_id, std::string(64, 'b'));
+    S().Fail(w, tasks[2].task_id, tasks[2].lease_id, "flaky");
+    LeasedTask outstanding = Lease(w);  // re-lease of task 2, in flight across the restart
+    const v1::JobStatus before = S().GetJob(job);
+
+    clock_.now += 5000;  // the restart takes a while: longer than a lease
+    Open();
+    const v1::JobStatus after = S().GetJob(job);
+    EXPECT_EQ(after.SerializeAsString(), before.SerializeAsString());
+    EXPECT_EQ(after.tasks_done(), 2);
+    EXPECT_EQ(after.leases_granted(), 4);
+    ASSERT_EQ(after.failures_size(), 1);
+    EXPECT_EQ(after.failures(0).message(), "flaky");
+    // Frame 1's tasks were all done but never written: found again.
+    auto awaiting = S().FramesAwaitingAssembly();
+    ASSERT_EQ(awaiting.size(), 1u);
+    EXPECT_EQ(awaiting[0], std::make_pair(job, 1));
+    // The outstanding lease got a fresh deadline: its worker may still heartbeat and
+    // complete it with the lease id it holds; the worker id is still known.
+    EXPECT_EQ(S().Sweep(), 0);
+    EXPECT_TRUE(S().Heartbeat(w, outstanding.task_id, outstanding.lease_id).lease_valid);
+    S().Complete(w, outstanding.task_id, outstanding.lease_id, std::string(64, 'd'));
+    // Finished tasks are never handed out again; lease ids keep growing.
+    std::set<int64_t> done = {tasks[0].task_id, tasks[1].task_id, outstanding.task_id};
+    int64_t last_lease = outstanding.lease_id;
+    int leased = 0;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) {
+        EXPECT_EQ(done.count(t->task_id), 0u);
+        EXPECT_GT(t->lease_id, last_lease);
+        last_lease = t->lease_id;
+        ++leased;
+    }
+    EXPECT_EQ(leased, 1);
+    EXPECT_EQ(S().GetJob(job).leases_granted(), 5);
+}
+
+TEST_F(SchedulerTest, LeaseOutstandingAtCrashExpiresOneLeasePeriodAfterRestart) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    Open();
+    clock_.now += 999;
+    EXPECT_EQ(S().Sweep(), 0);
+    clock_.now += 1;
+    EXPECT_EQ(S().Sweep(), 1);
+    EXPECT_EQ(Lease(w).task_id, t.task_id);
+}
+
+TEST_F(SchedulerTest, CompletionsArePersistedPerTask) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    S().Complete(w, t.task_id, t.lease_id, std::string(64, 'e'));
+    scheduler_.reset();
+    Store store(DbPath());
+    std::optional<TaskRow> row = store.GetTask(t.task_id);
+    ASSERT_TRUE(row.has_value());
+    EXPECT_EQ(row->completions, 1);
+    EXPECT_EQ(row->attempts, 1);
+    EXPECT_EQ(row->state, TaskState::kDone);
+    EXPECT_EQ(row->result_hash, std::string(64, 'e'));
+}
+
+TEST_F(SchedulerTest, ChangesAreReportedToTheListener) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    listener_.changes.clear();
+    S().Fail(w, t.task_id, t.lease_id, "boom");
+    ASSERT_FALSE(listener_.changes.empty());
+    EXPECT_NE(listener_.changes[0].find("failed on alpha: boom"), std::string::npos)
+        << listener_.changes[0];
+}
+
+}  // namespace
+}  // namespace tessera

@@ -1,0 +1,210 @@
+#include "scene_cache.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <utility>
+
+#include "convert.h"
+#include "scene/scene_loader.h"
+#include "sha256.h"
+
+namespace tessera {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// More tiles than this is a resolution no coordinator should have accepted; refusing
+// it here keeps a bad job from exhausting the worker's memory.
+constexpr int64_t kMaxTiles = int64_t(1) << 22;
+
+}  // namespace
+
+struct SceneCache::Job {
+    LoadedScene loaded;
+    std::mutex mutex;
+    // Frame renderers, most recently used first. They refer to `loaded.scene` and are
+    // declared after it, so they go first. They must not own the Job: that would be a
+    // cycle, and a dropped job would never be freed.
+    std::list<std::pair<int, std::shared_ptr<const FrameRenderer>>> frames;
+};
+
+namespace {
+
+// What Renderer() hands out: a frame renderer that keeps its job (and scene) alive.
+struct RendererHandle {
+    std::shared_ptr<SceneCache::Job> job;
+    std::shared_ptr<const FrameRenderer> renderer;
+};
+
+std::shared_ptr<const FrameRenderer> MakeFrameRenderer(const SceneCache::Job& job, int frame) {
+    RenderSettings settings = job.loaded.settings;
+    settings.frame = frame;
+    int64_t ts = settings.tile_size, w = settings.resolution.x, h = settings.resolution.y;
+    if (ts < 1 || w < 1 || h < 1)
+        throw std::invalid_argument(
+            fmt::format("invalid resolution {}x{} or tile size {}", w, h, ts));
+    if (((w + ts - 1) / ts) * ((h + ts - 1) / ts) > kMaxTiles)
+        throw std::invalid_argument(
+            fmt::format("{}x{} pixels in tiles of {} is too many tiles", w, h, ts));
+    return std::make_shared<const FrameRenderer>(*job.loaded.scene, settings);
+}
+
+// What the loaded scene depends on: the bundle and the render options (not, say, the
+// job's priority).
+std::string Fingerprint(const v1::JobSpec& spec) {
+    v1::JobSpec key;
+    key.set_scene_path(spec.scene_path());
+    *key.mutable_files() = spec.files();
+    *key.mutable_options() = spec.options();
+    return Sha256Hex(key.SerializeAsString());
+}
+
+}  // namespace
+
+SceneCache::SceneCache(fs::path jobs_dir, const BlobCache& blobs, size_t max_jobs,
+                       size_t max_frames)
+    : jobs_dir_(std::move(jobs_dir)),
+      blobs_(blobs),
+      max_jobs_(std::max<size_t>(1, max_jobs)),
+      max_frames_(std::max<size_t>(1, max_frames)) {
+    fs::create_directories(jobs_dir_);
+}
+
+std::shared_ptr<const FrameRenderer> SceneCache::Renderer(const std::string& job_id,
+                                                          const v1::JobSpec& spec, int frame) {
+    if (frame < 0)
+        throw std::runtime_error(fmt::format("invalid task: frame {} is negative", frame));
+    auto handle = std::make_shared<RendererHandle>();
+    handle->job = GetJob(job_id, spec);
+    Job& job = *handle->job;
+    std::lock_guard lock(job.mutex);
+    for (auto it = job.frames.begin(); it != job.frames.end(); ++it) {
+        if (it->first == frame) {
+            job.frames.splice(job.frames.begin(), job.frames, it);
+            handle->renderer = it->second;
+            break;
+        }
+    }
+    if (!handle->renderer) {
+        try {
+            handle->renderer = MakeFrameRenderer(job, frame);
+        } catch (const std::exception& e) {
+            throw std::runtime_error(
+                fmt::format("setting up frame {} failed: {}", frame, e.what()));
+        }
+        job.frames.emplace_front(frame, handle->renderer);
+        if (job.frames.size() > max_frames_) job.frames.pop_back();
+    }
+    return std::shared_ptr<const FrameRenderer>(handle, handle->renderer.get());
+}
+
+std::vector<std::string> SceneCache::Jobs() const {
+    std::lock_guard lock(mutex_);
+    std::vector<std::string> ids;
+    for (const Slot& s : slots_) ids.push_back(s.job_id);
+    return ids;
+}
+
+std::shared_ptr<SceneCache::Job> SceneCache::GetJob(const std::string& job_id,
+                                                    const v1::JobSpec& spec) {
+    if (std::string err = ValidateJobId(job_id); !err.empty())
+        throw std::runtime_error("invalid task: " + err);
+    const std::string fingerprint = Fingerprint(spec);
+    std::unique_lock lock(mutex_);
+    for (auto it = slots_.begin(); it != slots_.end();) {
+        if (it->job_id != job_id) {
+            ++it;
+            continue;
+        }
+        if (it->fingerprint == fingerprint) {
+            slots_.splice(slots_.begin(), slots_, it);
+            std::shared_future<std::shared_ptr<Job>> job = it->job;
+            lock.unlock();
+            return job.get();  // waits for a load in progress; rethrows its error
+        }
+        // The same id with another bundle: a coordinator that started over with fresh
+        // state numbers its jobs anew. The old entry is stale for good.
+        if (it->job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+            std::shared_future<std::shared_ptr<Job>> loading = it->job;
+            lock.unlock();
+            loading.wait();
+            lock.lock();
+            it = slots_.begin();
+            continue;
+        }
+        spdlog::info("job {}: its bundle changed; dropping the old one", job_id);
+        std::error_code ec;
+        fs::remove_all(jobs_dir_ / job_id, ec);
+        it = slots_.erase(it);
+    }
+    // This call loads the job; calls for it that come meanwhile wait on the future.
+    std::promise<std::shared_ptr<Job>> promise;
+    uint64_t generation = next_generation_++;
+    slots_.push_front({job_id, fingerprint, generation, promise.get_future().share()});
+    EvictLocked();
+    lock.unlock();
+    try {
+        std::shared_ptr<Job> job = LoadJob(job_id, spec);
+        promise.set_value(job);
+        return job;
+    } catch (...) {
+        promise.set_exception(std::current_exception());
+        lock.lock();
+        for (auto it = slots_.begin(); it != slots_.end(); ++it) {
+            if (it->generation == generation) {
+                slots_.erase(it);
+                std::error_code ec;
+                fs::remove_all(jobs_dir_ / job_id, ec);
+                break;
+            }
+        }
+        throw;
+    }
+}
+
+std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
+                                                     const v1::JobSpec& spec) const {
+    auto start = std::chrono::steady_clock::now();
+    fs::path scene_path;
+    try {
+        scene_path = MaterializeBundle(blobs_, jobs_dir_ / job_id, spec);
+    } catch (const BlobFetchError& e) {
+        throw BlobFetchError(fmt::format("fetching the scene bundle failed: {}", e.what()),
+                             e.Transient());
+    } catch (const std::exception& e) {
+        throw std::runtime_error(fmt::format("fetching the scene bundle failed: {}", e.what()));
+    }
+    auto job = std::make_shared<Job>();
+    try {
+        job->loaded = LoadSceneFile(scene_path.string(), FromProto(spec.options()));
+    } catch (const std::exception& e) {
+        throw std::runtime_error(fmt::format("loading the scene failed: {}", e.what()));
+    }
+    double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    spdlog::info("job {}: loaded scene '{}' ({} files) in {:.0f} ms", job_id, spec.scene_path(),
+                 spec.files_size(), ms);
+    return job;
+}
+
+void SceneCache::EvictLocked() {
+    using namespace std::chrono_literals;
+    // Drop the least recently used jobs beyond the limit, but never one still loading:
+    // its loader and waiters hold it, and it will be dropped on a later call.
+    size_t held = slots_.size();
+    for (auto it = slots_.end(); held > max_jobs_ && it != slots_.begin();) {
+        --it;
+        if (it->job.wait_for(0s) != std::future_status::ready) continue;
+        spdlog::info("job {}: dropping its scene from the cache", it->job_id);
+        std::error_code ec;
+        fs::remove_all(jobs_dir_ / it->job_id, ec);
+        it = slots_.erase(it);
+        --held;
+    }
+}
+
+}  // namespace tessera

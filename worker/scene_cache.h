@@ -1,0 +1,66 @@
+#pragma once
+
+// Loaded scenes, kept across tasks: a worker fetches a job's bundle, loads its scene
+// and builds the BVH once, then renders every tile of every frame of that job from
+// it. The most recently used jobs stay loaded; older ones are dropped with their
+// bundle folders.
+
+#include <cstdint>
+#include <filesystem>
+#include <future>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "bundle_cache.h"
+#include "plan/frame_renderer.h"
+#include "tessera/v1/tessera.pb.h"
+
+namespace tessera {
+
+class SceneCache {
+  public:
+    // Bundles are materialized as <jobs_dir>/<job_id>/; at most `max_jobs` jobs stay
+    // loaded (and at most `max_frames` frame renderers per job).
+    SceneCache(std::filesystem::path jobs_dir, const BlobCache& blobs, size_t max_jobs = 2,
+               size_t max_frames = 4);
+
+    // The renderer of `frame` of job `job_id`, whose spec is `spec`. The first call for a
+    // job (or for a job id seen before with another bundle or options, as from a
+    // coordinator that started over) fetches its bundle and loads the scene; concurrent calls for
+    // that job wait for the same load. Throws std::runtime_error whose message starts with the step
+    // that failed ("fetching the scene bundle failed: ...", "loading the scene failed: ..."), ready
+    // to report as the task's failure; a failed load is not cached, so a later call tries again.
+    // Thread-safe. The renderer keeps its scene alive even if the job is dropped from the cache
+    // meanwhile.
+    std::shared_ptr<const FrameRenderer> Renderer(const std::string& job_id,
+                                                  const v1::JobSpec& spec, int frame);
+
+    // Ids of the jobs held (loaded or loading), most recently used first.
+    std::vector<std::string> Jobs() const;
+
+    struct Job;
+
+  private:
+    struct Slot {
+        std::string job_id;
+        std::string fingerprint;  // of the spec's bundle and options
+        uint64_t generation = 0;
+        std::shared_future<std::shared_ptr<Job>> job;
+    };
+
+    std::shared_ptr<Job> GetJob(const std::string& job_id, const v1::JobSpec& spec);
+    std::shared_ptr<Job> LoadJob(const std::string& job_id, const v1::JobSpec& spec) const;
+    void EvictLocked();
+
+    std::filesystem::path jobs_dir_;
+    const BlobCache& blobs_;
+    size_t max_jobs_, max_frames_;
+    mutable std::mutex mutex_;
+    std::list<Slot> slots_;  // most recently used first
+    uint64_t next_generation_ = 0;
+};
+
+}  // namespace tessera
