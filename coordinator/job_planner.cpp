@@ -160,8 +160,14 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     PlannedJob planned;
     planned.staging_ = (fs::path(jobs_dir_) / StagingName()).string();
     const fs::path bundle = fs::path(planned.staging_) / "bundle";
-    for (const v1::BundleFile& f : spec.files())
-        blobs_.Materialize(f.hash(), (bundle / f.path()).string());
+    for (const v1::BundleFile& f : spec.files()) {
+        try {
+            blobs_.Materialize(f.hash(), (bundle / f.path()).string());
+        } catch (const fs::filesystem_error& e) {
+            // e.g. both "a" and "a/b" listed: one cannot be a file and a folder
+            Invalid("bundle file '" + f.path() + "' cannot be placed: " + e.code().message());
+        }
+    }
 
     RenderOverrides overrides;
     try {
@@ -172,7 +178,6 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     LoadedScene loaded;
     try {
         loaded = LoadSceneFile((bundle / spec.scene_path()).string(), overrides);
-        FrameRenderer check(*loaded.scene, loaded.settings);  // rejects unrenderable settings
     } catch (const SceneError& e) {
         Invalid(e.what());
     } catch (const std::invalid_argument& e) {
@@ -181,11 +186,20 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     const RenderSettings& s = loaded.settings;
     const Vec2i res = loaded.scene->GetCamera().Resolution();
     const int frames = spec.frame_end() - spec.frame_start() + 1;
+    if (s.tile_size < 1) Invalid(fmt::format("tile size {} is below 1", s.tile_size));
+    // Limits before anything is sized by them (tiles, the renderer).
+    const int64_t tiles = ((int64_t(res.x) + s.tile_size - 1) / s.tile_size) *
+                          ((int64_t(res.y) + s.tile_size - 1) / s.tile_size);
+    CheckSettings(res.x, res.y, s.spp, tiles * frames);
+    try {
+        FrameRenderer check(*loaded.scene, s);  // rejects settings it cannot render
+    } catch (const std::invalid_argument& e) {
+        Invalid(e.what());
+    }
+    // The plan's shape is the same for every frame (the tiles of the resolution).
     RenderSettings frame_settings = s;
     frame_settings.frame = spec.frame_start();
     const RenderPlan plan = MakeRenderPlan(res, frame_settings);
-    const int64_t tasks = int64_t(plan.TotalTasks()) * frames;
-    CheckSettings(res.x, res.y, s.spp, tasks);
 
     NewJob& job = planned.job;
     job.name = spec.name();

@@ -396,6 +396,7 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
     spdlog::log(state == v1::JOB_STATE_FAILED ? spdlog::level::err : spdlog::level::info,
                 "job {} '{}' {}{}", FormatJobId(job_id), info.name,
                 state == v1::JOB_STATE_FAILED ? "failed: " : "cancelled", error);
+    jobs_.erase(job_id);  // `info` is gone from here on
 }
 
 std::string Scheduler::AddJob(const NewJob& job) {
@@ -512,6 +513,7 @@ void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::st
         spdlog::info("job {} frame {} written: {}", job_id, frame, exr_path);
         events.push_back({Event::kJob, job_id, fmt::format("frame {} done", frame)});
         if (job_done) {
+            jobs_.erase(id);
             spdlog::info("job {} '{}' done", job_id, job.name);
             events.push_back({Event::kJob, job_id, "job done"});
         }

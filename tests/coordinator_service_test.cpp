@@ -231,6 +231,13 @@ TEST_F(CoordinatorTest, SubmitRejectsBadSpecsWithTheRightCode) {
     invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_hash("xyz"); }, "malformed hash");
     invalid([](v1::JobSpec& s) { s.mutable_files(0)->set_size(3); }, "declares 3 bytes");
     invalid([](v1::JobSpec& s) { *s.add_files() = s.files(0); }, "twice");
+    invalid(
+        [](v1::JobSpec& s) {
+            v1::BundleFile* f = s.add_files();
+            *f = s.files(0);
+            f->set_path("shots/scene.json/inside");
+        },
+        "cannot be placed");
     invalid([](v1::JobSpec& s) { s.set_frame_start(5), s.set_frame_end(4); }, "before");
     invalid([](v1::JobSpec& s) { s.mutable_options()->set_sampler("sobol"); }, "sobol");
     invalid([](v1::JobSpec& s) { s.mutable_options()->set_integrator("magic"); }, "magic");
