@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "chi_square.h"
 #include "core/arena.h"
 #include "core/rng.h"
 #include "core/sampling.h"
@@ -58,40 +59,6 @@ bool RelNear(double a, double b, double rel, double floor = 1e-7) {
 
 // ---------------------------------------------------------------------------------------
 // Statistics
-
-// Regularised upper incomplete gamma function Q(a, x) (Numerical Recipes, 6.2): the
-// series below x = a + 1, the continued fraction (modified Lentz) above.
-double GammaQ(double a, double x) {
-    if (x <= 0) return 1;
-    double log_prefactor = -x + a * std::log(x) - std::lgamma(a);
-    if (x < a + 1) {
-        double ap = a, del = 1 / a, sum = del;
-        for (int n = 0; n < 100000 && std::abs(del) > std::abs(sum) * 1e-15; ++n) {
-            ap += 1;
-            del *= x / ap;
-            sum += del;
-        }
-        return std::max(0.0, 1 - sum * std::exp(log_prefactor));
-    }
-    constexpr double kTiny = 1e-300;
-    double b = x + 1 - a, c = 1 / kTiny, d = 1 / b, h = d;
-    for (int i = 1; i < 100000; ++i) {
-        double an = -i * (i - a);
-        b += 2;
-        d = an * d + b;
-        if (std::abs(d) < kTiny) d = kTiny;
-        c = b + an / c;
-        if (std::abs(c) < kTiny) c = kTiny;
-        d = 1 / d;
-        double del = d * c;
-        h *= del;
-        if (std::abs(del - 1) < 1e-15) break;
-    }
-    return std::exp(log_prefactor) * h;
-}
-
-// P(X >= chi2) for X chi-square distributed with `dof` degrees of freedom.
-double Chi2PValue(double chi2, int dof) { return GammaQ(dof / 2.0, chi2 / 2.0); }
 
 // Adaptive Simpson quadrature; `min_depth` forced subdivisions keep it from accepting two
 // coarse estimates that agree by chance while both miss a narrow peak. No Richardson
@@ -211,7 +178,7 @@ Chi2Result RunChi2(const Bsdf& bsdf, const Vec3& wo, uint64_t seed) {
     // The counts are constrained by their total only approximately (failed samples and
     // specular ones are not binned), but pbrt and Mitsuba subtract one all the same;
     // it errs on the side of rejecting.
-    result.p_value = dof > 1 ? Chi2PValue(chi2, dof - 1) : 0;
+    result.p_value = dof > 1 ? ChiSquarePValue(chi2, dof - 1) : 0;
     return result;
 }
 
@@ -392,12 +359,12 @@ TEST(Chi2Power, RejectsSlightlyWrongPdf) {
 TEST(Chi2PValue, MatchesKnownValues) {
     // dof = 2: the survival function is exactly exp(-x / 2).
     for (double x : {0.5, 3.0, 20.0, 80.0}) {
-        EXPECT_NEAR(Chi2PValue(x, 2), std::exp(-x / 2), 1e-12 + 1e-9 * std::exp(-x / 2));
+        EXPECT_NEAR(ChiSquarePValue(x, 2), std::exp(-x / 2), 1e-12 + 1e-9 * std::exp(-x / 2));
     }
-    EXPECT_NEAR(Chi2PValue(3.841459, 1), 0.05, 1e-6);
-    EXPECT_NEAR(Chi2PValue(23.209251, 10), 0.01, 1e-6);
-    EXPECT_NEAR(Chi2PValue(1106.969, 1000), 0.01, 2e-4);
-    EXPECT_NEAR(Chi2PValue(3199.0, 3199), 0.5, 0.01);
+    EXPECT_NEAR(ChiSquarePValue(3.841459, 1), 0.05, 1e-6);
+    EXPECT_NEAR(ChiSquarePValue(23.209251, 10), 0.01, 1e-6);
+    EXPECT_NEAR(ChiSquarePValue(1106.969, 1000), 0.01, 2e-4);
+    EXPECT_NEAR(ChiSquarePValue(3199.0, 3199), 0.5, 0.01);
 }
 
 // ---------------------------------------------------------------------------------------
