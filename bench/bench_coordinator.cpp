@@ -1,7 +1,9 @@
-// Coordinator throughput: W concurrent fake workers lease trivial tile tasks, upload a
-// minimal valid result and complete them, as fast as the coordinator allows.
+// Coordinator throughput: W concurrent fake workers lease trivial tile tasks and
+// complete them with a minimal valid result, as fast as the coordinator allows. The
+// result travels inline with CompleteTask, as real workers send small results; with
+// --upload-blobs it is uploaded as a blob first (FindMissingBlobs + PutBlob).
 //
-//   bench_coordinator --coordinator HOST:PORT [--workers 8] [--seconds 20]
+//   bench_coordinator --coordinator HOST:PORT [--workers 8] [--seconds 20] [--upload-blobs]
 //
 // The job must exist already (bench/run_farm.sh submits one with 1x1-pixel tiles and a
 // box filter, so every result is a 1x1 region). Prints tasks/s.
@@ -27,13 +29,25 @@ int main(int argc, char** argv) {
     std::string address;
     int workers = 8;
     double seconds = 20;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        if (!std::strcmp(argv[i], "--coordinator")) address = argv[i + 1];
-        else if (!std::strcmp(argv[i], "--workers")) workers = std::atoi(argv[i + 1]);
-        else if (!std::strcmp(argv[i], "--seconds")) seconds = std::atof(argv[i + 1]);
+    bool upload_blobs = false;
+    bool usage = false;
+    for (int i = 1; i < argc; ++i) {
+        const bool has_value = i + 1 < argc;
+        if (!std::strcmp(argv[i], "--upload-blobs"))
+            upload_blobs = true;
+        else if (!std::strcmp(argv[i], "--coordinator") && has_value)
+            address = argv[++i];
+        else if (!std::strcmp(argv[i], "--workers") && has_value)
+            workers = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--seconds") && has_value)
+            seconds = std::atof(argv[++i]);
+        else
+            usage = true;
     }
-    if (address.empty()) {
-        std::fprintf(stderr, "usage: bench_coordinator --coordinator HOST:PORT [--workers N] [--seconds S]\n");
+    if (address.empty() || usage) {
+        std::fprintf(stderr,
+                     "usage: bench_coordinator --coordinator HOST:PORT [--workers N] "
+                     "[--seconds S] [--upload-blobs]\n");
         return 2;
     }
     auto channel = grpc::CreateChannel(address, grpc::InsecureChannelCredentials());
@@ -74,27 +88,32 @@ int main(int argc, char** argv) {
                 int x = t.task_index() % width, y = t.task_index() / width;
                 r.region = PixelBounds{Vec2i(x, y), Vec2i(x + 1, y + 1)};
                 r.data.assign(TileFilm::kChannels, 0.0f);
-                std::string hash = UploadBlob(*blobs, EncodeTileResult(r));
                 grpc::ClientContext cctx;
                 v1::CompleteTaskRequest creq;
                 creq.set_worker_id(reg_resp.worker_id());
                 creq.set_task_id(t.task_id());
                 creq.set_lease_id(t.lease_id());
-                creq.set_result_hash(hash);
+                if (upload_blobs)
+                    creq.set_result_hash(UploadBlob(*blobs, EncodeTileResult(r)));
+                else
+                    creq.set_result(EncodeTileResult(r));
                 v1::CompleteTaskResponse cresp;
-                if (stub->CompleteTask(&cctx, creq, &cresp).ok()) ++completed;
-                else ++failed;
-                if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
-                    seconds)
+                if (stub->CompleteTask(&cctx, creq, &cresp).ok())
+                    ++completed;
+                else
+                    ++failed;
+                if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                        .count() > seconds)
                     stop = true;
             }
         });
     }
     for (auto& t : threads) t.join();
     double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("coordinator: %d workers, %llu tasks leased+completed in %.2f s = %.0f tasks/s "
-                "(%llu failed calls)\n",
-                workers, (unsigned long long)completed.load(), s, completed / s,
-                (unsigned long long)failed.load());
+    std::printf(
+        "coordinator: %d workers, %llu tasks leased+completed in %.2f s = %.0f tasks/s "
+        "(%llu failed calls; results %s)\n",
+        workers, (unsigned long long)completed.load(), s, completed / s,
+        (unsigned long long)failed.load(), upload_blobs ? "uploaded as blobs" : "inline");
     return 0;
 }

@@ -10,6 +10,9 @@
 namespace tessera {
 
 inline constexpr size_t kBlobChunkBytes = 1 << 20;
+// Task results up to this size travel inline in CompleteTaskRequest.result; larger
+// ones are uploaded as blobs first.
+inline constexpr size_t kMaxInlineResultBytes = 4 << 20;
 
 // Uploads `bytes` unless the store already has them; returns the hash. Throws
 // std::runtime_error carrying the gRPC status code name and message.

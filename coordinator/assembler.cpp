@@ -24,7 +24,7 @@ UnreadableResults::UnreadableResults(std::vector<int> task_indices, const std::s
           fmt::format("{} tile result(s) unreadable, first: {}", task_indices.size(), first_error)),
       task_indices_(std::move(task_indices)) {}
 
-std::string WriteFrame(const FrameAssemblyInput& in, const BlobStore& blobs,
+std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                        const std::string& output_dir, int64_t now_ms) {
     RenderSettings settings;
     settings.integrator = in.settings.integrator;
@@ -47,7 +47,7 @@ std::string WriteFrame(const FrameAssemblyInput& in, const BlobStore& blobs,
     for (const auto& [index, hash] : in.results) {
         try {
             if (hash.empty()) throw std::runtime_error("no result recorded");
-            TileResult result = DecodeTileResult(blobs.Read(hash));
+            TileResult result = DecodeTileResult(blobs.ReadVerified(hash));
             if (result.task_index != index)
                 throw std::runtime_error(
                     fmt::format("blob {} holds tile {}", hash, result.task_index));
@@ -70,7 +70,7 @@ std::string WriteFrame(const FrameAssemblyInput& in, const BlobStore& blobs,
     return exr;
 }
 
-AssemblyQueue::AssemblyQueue(Scheduler& scheduler, const BlobStore& blobs, std::string output_dir,
+AssemblyQueue::AssemblyQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
                              const Clock& clock)
     : scheduler_(scheduler), blobs_(blobs), output_dir_(std::move(output_dir)), clock_(clock) {}
 

@@ -6,8 +6,10 @@
 // <output>/<job_id>/<name>.<frame:04>.exr and a PNG preview beside it, both atomically,
 // then marks the frame done. At start-up the queue is seeded with frames whose tasks
 // are all done but whose EXR was never recorded (the coordinator died in between).
-// A tile result that cannot be read back sends its task back to the queue (it is
-// rendered again) instead of failing the job; any other error fails the job.
+// A tile result that cannot be read back (missing, or its bytes do not match its hash:
+// results are stored without fsync, so an OS crash may lose or damage them) sends its
+// task back to the queue (it is rendered again; a damaged blob is removed first)
+// instead of failing the job; any other error fails the job.
 
 #include <condition_variable>
 #include <deque>
@@ -40,12 +42,12 @@ class UnreadableResults : public std::runtime_error {
 
 // Assembles and writes one frame; returns the EXR's path. Throws UnreadableResults
 // if tile results cannot be read back, std::exception on anything else (a failed write).
-std::string WriteFrame(const FrameAssemblyInput& input, const BlobStore& blobs,
+std::string WriteFrame(const FrameAssemblyInput& input, BlobStore& blobs,
                        const std::string& output_dir, int64_t now_ms);
 
 class AssemblyQueue {
   public:
-    AssemblyQueue(Scheduler& scheduler, const BlobStore& blobs, std::string output_dir,
+    AssemblyQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
                   const Clock& clock);
     ~AssemblyQueue();
 
@@ -63,7 +65,7 @@ class AssemblyQueue {
     void Assemble(const std::string& job_id, int frame);
 
     Scheduler& scheduler_;
-    const BlobStore& blobs_;
+    BlobStore& blobs_;
     std::string output_dir_;
     const Clock& clock_;
     std::mutex mu_;

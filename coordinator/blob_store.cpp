@@ -84,19 +84,57 @@ std::string BlobStore::Read(const std::string& hash) const {
     return std::move(ss).str();
 }
 
-bool BlobStore::Put(const std::string& hash, std::string_view bytes) {
-    std::unique_ptr<BlobWriter> writer = BeginWrite(hash, bytes.size());
+std::string BlobStore::ReadVerified(const std::string& hash) {
+    CheckHash(hash);
+    const std::string path = PathOf(hash);
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) ThrowError(ErrorCode::kNotFound, "no blob " + hash);
+    struct stat st;
+    std::string bytes;
+    std::string error;
+    if (::fstat(fd, &st) != 0)
+        error = ErrnoText();
+    else
+        bytes.resize(static_cast<size_t>(st.st_size));
+    size_t at = 0;
+    while (error.empty() && at < bytes.size()) {
+        const ssize_t n = ::read(fd, bytes.data() + at, bytes.size() - at);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0)
+            error = ErrnoText();
+        else if (n == 0)
+            bytes.resize(at);  // it shrank meanwhile
+        else
+            at += static_cast<size_t>(n);
+    }
+    ::close(fd);
+    if (!error.empty()) ThrowError(ErrorCode::kInternal, "cannot read blob " + hash + ": " + error);
+    const std::string actual = Sha256Hex(bytes);
+    if (actual == hash) return bytes;
+    // Damaged (an unsynced blob after an OS crash, or the disk): remove it so that a good
+    // copy can be stored again, unless a writer has renamed one into place meanwhile.
+    struct stat now;
+    if (::stat(path.c_str(), &now) == 0 && now.st_ino == st.st_ino && now.st_dev == st.st_dev)
+        ::unlink(path.c_str());
+    ThrowError(ErrorCode::kDataLoss, "blob " + hash + " is damaged (its " +
+                                         std::to_string(bytes.size()) + " bytes hash to " + actual +
+                                         "); removed it");
+}
+
+bool BlobStore::Put(const std::string& hash, std::string_view bytes, Durability durability) {
+    std::unique_ptr<BlobWriter> writer = BeginWrite(hash, bytes.size(), durability);
     writer->Append(bytes);
     return writer->Commit();
 }
 
-std::unique_ptr<BlobWriter> BlobStore::BeginWrite(const std::string& hash, uint64_t size) {
+std::unique_ptr<BlobWriter> BlobStore::BeginWrite(const std::string& hash, uint64_t size,
+                                                  Durability durability) {
     CheckHash(hash);
     if (size > max_blob_bytes_)
         ThrowError(ErrorCode::kResourceExhausted, "blob " + hash + " has " + std::to_string(size) +
                                                       " bytes; this coordinator accepts at most " +
                                                       std::to_string(max_blob_bytes_));
-    return std::unique_ptr<BlobWriter>(new BlobWriter(*this, hash, size));
+    return std::unique_ptr<BlobWriter>(new BlobWriter(*this, hash, size, durability));
 }
 
 void BlobStore::Materialize(const std::string& hash, const std::string& dest) const {
@@ -110,8 +148,9 @@ void BlobStore::Materialize(const std::string& hash, const std::string& dest) co
     if (ec) fs::copy_file(src, dest, fs::copy_options::overwrite_existing);
 }
 
-BlobWriter::BlobWriter(const BlobStore& store, std::string hash, uint64_t size)
-    : store_(store), hash_(std::move(hash)), size_(size) {}
+BlobWriter::BlobWriter(const BlobStore& store, std::string hash, uint64_t size,
+                       Durability durability)
+    : store_(store), hash_(std::move(hash)), size_(size), durability_(durability) {}
 
 BlobWriter::~BlobWriter() { Discard(); }
 
@@ -190,7 +229,8 @@ bool BlobWriter::Commit() {
     }
     WriteOut(buffer_);
     buffer_ = std::string();
-    if (::fsync(fd_) != 0) {
+    const bool durable = durability_ == Durability::kDurable;
+    if (durable && ::fsync(fd_) != 0) {
         std::string why = ErrnoText();
         Discard();
         ThrowError(ErrorCode::kInternal, "cannot sync blob " + hash_ + ": " + why);
@@ -205,7 +245,7 @@ bool BlobWriter::Commit() {
     }
     temp_path_.clear();
     closed_ = true;
-    FsyncPath(fs::path(final_path).parent_path().string());
+    if (durable) FsyncPath(fs::path(final_path).parent_path().string());
     return true;
 }
 

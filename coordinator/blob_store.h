@@ -7,6 +7,11 @@
 // complete and correct or does not exist. Writers of the same blob may race: each writes
 // its own temporary file and the renames are atomic. Temporary files left by a crash
 // are removed at start-up.
+//
+// Blobs that can be produced again (tile results: the task is simply rendered again)
+// may be stored with Durability::kRecomputable: same temporary file and rename, but no
+// fsync. After an OS crash such a blob may be missing, empty or hold the wrong bytes;
+// its reader must use ReadVerified, which notices and removes the damaged file.
 
 #include <cstdint>
 #include <memory>
@@ -19,6 +24,11 @@
 namespace tessera {
 
 class BlobWriter;
+
+enum class Durability {
+    kDurable,       // fsync'd before it becomes visible (client uploads, scene bundles)
+    kRecomputable,  // not synced: only for blobs that can be recreated (tile results)
+};
 
 class BlobStore {
   public:
@@ -35,12 +45,17 @@ class BlobStore {
     std::string PathOf(const std::string& hash) const;
     // The blob's bytes; NOT_FOUND if absent.
     std::string Read(const std::string& hash) const;
+    // Read, then checks the bytes against the hash: DATA_LOSS on a mismatch, after
+    // removing the damaged file so that the blob can be stored again.
+    std::string ReadVerified(const std::string& hash);
 
     // Stores `bytes` as blob `hash`: DATA_LOSS if they do not hash to it. Returns false
     // if the blob was already present.
-    bool Put(const std::string& hash, std::string_view bytes);
+    bool Put(const std::string& hash, std::string_view bytes,
+             Durability durability = Durability::kDurable);
     // Starts a streamed upload of a blob that claims `hash` and `size`.
-    std::unique_ptr<BlobWriter> BeginWrite(const std::string& hash, uint64_t size);
+    std::unique_ptr<BlobWriter> BeginWrite(const std::string& hash, uint64_t size,
+                                           Durability durability = Durability::kDurable);
 
     // Places a copy of the blob at `dest` (a hard link where the file system allows,
     // since blobs are never modified); NOT_FOUND if absent.
@@ -66,7 +81,8 @@ class BlobWriter {
     // Small blobs stay in memory until Commit, which then does all the file work.
     void Append(std::string_view data);
     // Verifies size and hash (DATA_LOSS on a mismatch, temporary file removed), then
-    // makes the blob durable and visible. Returns false if it was already present.
+    // makes the blob visible (durable first, unless kRecomputable). Returns false if it
+    // was already present.
     bool Commit();
     uint64_t Received() const { return received_; }
 
@@ -74,7 +90,7 @@ class BlobWriter {
     friend class BlobStore;
     static constexpr size_t kMemoryBytes = 8 << 20;
 
-    BlobWriter(const BlobStore& store, std::string hash, uint64_t size);
+    BlobWriter(const BlobStore& store, std::string hash, uint64_t size, Durability durability);
     void Discard();
     void OpenTemp();
     void WriteOut(std::string_view data);
@@ -82,6 +98,7 @@ class BlobWriter {
     const BlobStore& store_;
     std::string hash_;
     uint64_t size_;
+    Durability durability_;
     uint64_t received_ = 0;
     std::string temp_path_;
     int fd_ = -1;

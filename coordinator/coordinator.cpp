@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "blob_client.h"
 #include "errors.h"
 #include "plan/render_plan.h"
 
@@ -132,33 +133,49 @@ std::string Coordinator::FrameFile(const std::string& job_id, int frame, bool pr
 }
 
 void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                               const std::string& result_hash) {
+                               const std::string& result_hash, const std::string& result) {
     const LeaseCheck check = scheduler_.CheckLease(task_id, lease_id);
-    BlobStore::CheckHash(result_hash);
-    if (!blobs_.Has(result_hash))
-        ThrowError(ErrorCode::kNotFound, "result blob " + result_hash +
-                                             " was not uploaded (PutBlob before CompleteTask)");
-    TileResult result;
+    const bool inline_result = !result.empty();
+    std::string hash = result_hash;
+    if (inline_result) {
+        if (result.size() > kMaxInlineResultBytes)
+            ThrowError(ErrorCode::kResourceExhausted,
+                       fmt::format("inline result has {} bytes, at most {} are accepted; upload "
+                                   "it as a blob",
+                                   result.size(), kMaxInlineResultBytes));
+        hash = Sha256Hex(result);
+        if (!result_hash.empty() && result_hash != hash)
+            ThrowError(ErrorCode::kInvalidArgument, "inline result hashes to " + hash +
+                                                        ", not to its result_hash '" +
+                                                        result_hash.substr(0, 80) + "'");
+    } else {
+        BlobStore::CheckHash(result_hash);
+        if (!blobs_.Has(result_hash))
+            ThrowError(ErrorCode::kNotFound, "result blob " + result_hash +
+                                                 " was not uploaded (PutBlob before CompleteTask)");
+    }
+    const std::string what = inline_result ? "inline result" : "result blob " + hash;
+    TileResult decoded;
     try {
-        result = DecodeTileResult(blobs_.Read(result_hash));
+        decoded = inline_result ? DecodeTileResult(result) : DecodeTileResult(blobs_.Read(hash));
     } catch (const std::runtime_error& e) {
         if (auto* ce = dynamic_cast<const CoordinatorError*>(&e)) throw *ce;
-        ThrowError(ErrorCode::kInvalidArgument,
-                   "result blob " + result_hash + " is not a tile result: " + e.what());
+        ThrowError(ErrorCode::kInvalidArgument, what + " is not a tile result: " + e.what());
     }
     const PixelBounds& t = check.tile;
-    const PixelBounds& g = result.region;
+    const PixelBounds& g = decoded.region;
     const bool covers = g.lo.x <= t.lo.x && g.lo.y <= t.lo.y && g.hi.x >= t.hi.x &&
                         g.hi.y >= t.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
                         g.hi.x <= check.resolution.x && g.hi.y <= check.resolution.y;
-    if (result.task_index != check.task_index || !covers)
-        ThrowError(
-            ErrorCode::kInvalidArgument,
-            fmt::format("result blob {} holds tile {} [{},{})-[{},{}), not task {}'s tile {} "
-                        "of {} frame {}",
-                        result_hash, result.task_index, g.lo.x, g.lo.y, g.hi.x, g.hi.y, task_id,
-                        check.task_index, check.job_id, check.frame));
-    scheduler_.Complete(worker_id, task_id, lease_id, result_hash);
+    if (decoded.task_index != check.task_index || !covers)
+        ThrowError(ErrorCode::kInvalidArgument,
+                   fmt::format("{} holds tile {} [{},{})-[{},{}), not task {}'s tile {} of {} "
+                               "frame {}",
+                               what, decoded.task_index, g.lo.x, g.lo.y, g.hi.x, g.hi.y, task_id,
+                               check.task_index, check.job_id, check.frame));
+    // Not synced: if a crash loses it, assembly notices and the tile is rendered again.
+    if (inline_result) blobs_.Put(hash, result, Durability::kRecomputable);
+    scheduler_.Complete(worker_id, task_id, lease_id, hash);
 }
 
 }  // namespace tessera

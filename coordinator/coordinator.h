@@ -71,10 +71,14 @@ class Coordinator final : public SchedulerListener {
     HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id) {
         return scheduler_.Heartbeat(worker_id, task_id, lease_id);
     }
-    // The result blob must have been uploaded first and decode as this task's tile:
-    // NOT_FOUND if it is missing, INVALID_ARGUMENT if it is not the task's result.
+    // The result comes either inline (`result` non-empty; `result_hash`, if given, must
+    // be its SHA-256: INVALID_ARGUMENT otherwise; RESOURCE_EXHAUSTED over
+    // kMaxInlineResultBytes), stored as a Durability::kRecomputable blob, or as a blob
+    // uploaded first (NOT_FOUND if it is missing). Either way it must decode as this
+    // task's tile (INVALID_ARGUMENT). The lease is checked first: a stale one is
+    // FAILED_PRECONDITION and nothing is stored.
     void CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                      const std::string& result_hash);
+                      const std::string& result_hash, const std::string& result = {});
     void FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
                   const std::string& message) {
         scheduler_.Fail(worker_id, task_id, lease_id, message);

@@ -89,7 +89,8 @@ class WorkersService final : public v1::Workers::CallbackService {
                                            v1::CompleteTaskResponse*) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
         reactor->Finish(Guarded([&] {
-            c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->result_hash());
+            c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->result_hash(),
+                            req->result());
         }));
         return reactor;
     }

@@ -1,5 +1,6 @@
 // Blob store tests: put and read back, verification against the claimed hash and size
-// with nothing left behind on a mismatch, idempotent and concurrent puts.
+// with nothing left behind on a mismatch, idempotent and concurrent puts, unsynced
+// (recomputable) blobs and the removal of a damaged one on a verified read.
 
 #include "blob_store.h"
 
@@ -156,6 +157,37 @@ TEST_F(BlobStoreTest, ConcurrentPutsOfTheSameBlob) {
     EXPECT_EQ(errors.load(), 0);
     EXPECT_EQ(store.Read(hash), bytes);
     EXPECT_EQ(Files().size(), 1u);  // one blob, no temporaries
+}
+
+TEST_F(BlobStoreTest, RecomputableBlobsAreStoredAndReadLikeOthers) {
+    BlobStore store(dir_.string());
+    const std::string bytes = "a tile result, not synced";
+    const std::string hash = Sha256Hex(bytes);
+    EXPECT_EQ(CodeOf([&] { store.Put(Sha256Hex("other"), bytes, Durability::kRecomputable); }),
+              ErrorCode::kDataLoss);
+    EXPECT_TRUE(store.Put(hash, bytes, Durability::kRecomputable));
+    EXPECT_FALSE(store.Put(hash, bytes, Durability::kRecomputable));
+    EXPECT_EQ(store.Read(hash), bytes);
+    EXPECT_EQ(store.ReadVerified(hash), bytes);
+    EXPECT_EQ(Files(), std::vector<std::string>{hash.substr(0, 2) + "/" + hash});
+}
+
+TEST_F(BlobStoreTest, ReadVerifiedRemovesADamagedBlob) {
+    BlobStore store(dir_.string());
+    const std::string bytes = "bytes an OS crash may lose";
+    const std::string hash = Sha256Hex(bytes);
+    store.Put(hash, bytes, Durability::kRecomputable);
+    // What an unsynced file may look like after a crash: right size, wrong bytes.
+    std::string damaged = bytes;
+    damaged[5] ^= 0x20;
+    { std::ofstream(store.PathOf(hash), std::ios::binary | std::ios::trunc) << damaged; }
+    EXPECT_EQ(store.Read(hash), damaged);  // Read does not check
+    EXPECT_EQ(CodeOf([&] { store.ReadVerified(hash); }), ErrorCode::kDataLoss);
+    EXPECT_FALSE(store.Has(hash));
+    EXPECT_EQ(CodeOf([&] { store.ReadVerified(hash); }), ErrorCode::kNotFound);
+    EXPECT_TRUE(store.Put(hash, bytes, Durability::kRecomputable));  // stored again
+    EXPECT_EQ(store.ReadVerified(hash), bytes);
+    EXPECT_EQ(CodeOf([&] { store.ReadVerified("../x"); }), ErrorCode::kInvalidArgument);
 }
 
 TEST_F(BlobStoreTest, RestartRemovesStaleTemporaries) {

@@ -311,6 +311,73 @@ TEST_F(CoordinatorTest, CompleteChecksTheResultBlob) {
     EXPECT_EQ(C().GetJob(job).tasks_done(), 1);
 }
 
+TEST_F(CoordinatorTest, InlineResultsAreAcceptedAndAssembled) {
+    v1::JobSpec spec = SceneSpec();
+    spec.set_name("inline");
+    std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    bool with_hash = false;
+    while (std::optional<LeasedTask> t = LeaseNow(w)) {
+        const std::string result = Render(*t);
+        // The hash is optional with an inline result; when given, it must match.
+        C().CompleteTask(w, t->task_id, t->lease_id, with_hash ? Sha256Hex(result) : "", result);
+        EXPECT_TRUE(C().Blobs().Has(Sha256Hex(result)));
+        with_hash = !with_hash;
+    }
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.tasks_done(), kTasksPerFrame);
+    EXPECT_EQ(st.leases_granted(), kTasksPerFrame);
+    ExpectSameAsLocal((dir_ / "out" / job / "inline.0000.exr").string(), 0);
+}
+
+TEST_F(CoordinatorTest, InlineResultsAreChecked) {
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    LeasedTask a = *LeaseNow(w);
+    LeasedTask b = *LeaseNow(w);
+    const std::string result = Render(a);
+    std::string message;
+    auto complete = [&](const std::string& hash, const std::string& bytes) {
+        return CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, hash, bytes); }, &message);
+    };
+    // A result that does not match its hash.
+    EXPECT_EQ(complete(Sha256Hex("something else"), result), ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("hashes to " + Sha256Hex(result)), std::string::npos) << message;
+    EXPECT_EQ(complete("not a hash", result), ErrorCode::kInvalidArgument);
+    // Not a tile result, another task's tile.
+    EXPECT_EQ(complete("", "not a tile result at all"), ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("inline result is not a tile result"), std::string::npos) << message;
+    EXPECT_EQ(complete("", Render(b)), ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("not task"), std::string::npos) << message;
+    EXPECT_EQ(complete("", std::string(kMaxInlineResultBytes + 1, 'x')),
+              ErrorCode::kResourceExhausted);
+    // Nothing was stored and nothing completed.
+    EXPECT_FALSE(C().Blobs().Has(Sha256Hex(result)));
+    EXPECT_FALSE(C().Blobs().Has(Sha256Hex(Render(b))));
+    EXPECT_EQ(C().GetJob(job).tasks_done(), 0);
+    C().CompleteTask(w, a.task_id, a.lease_id, Sha256Hex(result), result);
+    EXPECT_EQ(C().GetJob(job).tasks_done(), 1);
+}
+
+TEST_F(CoordinatorTest, InlineResultOfAStaleLeaseIsRefusedAndNotStored) {
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    LeasedTask t = *LeaseNow(w);
+    const std::string result = Render(t);
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id + 100, "", result); }),
+              ErrorCode::kFailedPrecondition);
+    // Fencing comes before any check of the result.
+    EXPECT_EQ(
+        CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id + 100, Sha256Hex("x"), result); }),
+        ErrorCode::kFailedPrecondition);
+    EXPECT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, "", result); }),
+              ErrorCode::kFailedPrecondition);
+    EXPECT_FALSE(C().Blobs().Has(Sha256Hex(result)));
+    EXPECT_EQ(C().GetJob(job).tasks_done(), 0);
+}
+
 TEST_F(CoordinatorTest, LongPollIsAnsweredWhenWorkArrivesOrTimeRunsOut) {
     std::string w = C().Register("w1", 1).worker_id;
     auto start = std::chrono::steady_clock::now();
@@ -377,6 +444,41 @@ TEST_F(CoordinatorTest, ALostTileResultIsRenderedAgain) {
     EXPECT_EQ(again->task_index, 2);
     EXPECT_EQ(again->attempt, 2);
     C().CompleteTask(w, again->task_id, again->lease_id, PutBlob(Render(*again)));
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kTasksPerFrame + 1);
+    ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0);
+}
+
+// Inline results are stored without fsync: after an OS crash one may hold the wrong
+// bytes. Assembly checks each result against its hash, removes the damaged blob and has
+// the tile rendered again; the new copy (same bytes, same hash) is stored anew.
+TEST_F(CoordinatorTest, ADamagedTileResultIsRenderedAgain) {
+    start_ = false;
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    while (std::optional<LeasedTask> t = LeaseNow(w)) {
+        const std::string result = Render(*t);
+        C().CompleteTask(w, t->task_id, t->lease_id, "", result);
+    }
+    const std::string damaged = C().GetScheduler().GetAssemblyInput(job, 0).results[4].second;
+    {
+        const std::string path = C().Blobs().PathOf(damaged);
+        std::string bytes = C().Blobs().Read(damaged);
+        bytes[bytes.size() - 3] ^= 0x55;  // a pixel, not the header: it still decodes
+        ASSERT_NO_THROW(DecodeTileResult(bytes));
+        std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    }
+    start_ = true;
+    Restart();
+    auto until = std::chrono::steady_clock::now() + 10s;
+    std::optional<LeasedTask> again;
+    while (!again && std::chrono::steady_clock::now() < until) again = LeaseNow(w, 100);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(again->task_index, 4);
+    EXPECT_EQ(again->attempt, 2);
+    EXPECT_FALSE(C().Blobs().Has(damaged));  // removed, so that it can be stored again
+    C().CompleteTask(w, again->task_id, again->lease_id, "", Render(*again));
     v1::JobStatus st = WaitFinished(job);
     ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
     EXPECT_EQ(st.leases_granted(), kTasksPerFrame + 1);
@@ -523,13 +625,15 @@ TEST_F(GrpcAdapterTest, AJobEndToEnd) {
         lt.frame = task.frame();
         lt.task_index = task.task_index();
         lt.spec = std::make_shared<v1::JobSpec>(task.spec());
-        std::string result = UploadBlob(*blob_stub_, Render(lt));
         grpc::ClientContext cctx;
         v1::CompleteTaskRequest done;
         done.set_worker_id(reg.worker_id());
         done.set_task_id(task.task_id());
         done.set_lease_id(task.lease_id());
-        done.set_result_hash(result);
+        if (rendered % 2 == 0)
+            done.set_result(Render(lt));  // inline
+        else
+            done.set_result_hash(UploadBlob(*blob_stub_, Render(lt)));
         v1::CompleteTaskResponse ignored;
         ASSERT_TRUE(workers_stub_->CompleteTask(&cctx, done, &ignored).ok());
         ++rendered;

@@ -600,14 +600,15 @@ TEST_F(FarmTest, StaleResultIsRejected) {
         ADD_FAILURE() << "no task leased within 20 s";
         return v1::Task();
     };
-    auto complete = [&](const std::string& worker_id, const v1::Task& task,
-                        const std::string& hash) {
+    auto complete = [&](const std::string& worker_id, const v1::Task& task, const std::string& hash,
+                        const std::string& inline_result = "") {
         Ctx ctx;
         v1::CompleteTaskRequest req;
         req.set_worker_id(worker_id);
         req.set_task_id(task.task_id());
         req.set_lease_id(task.lease_id());
         req.set_result_hash(hash);
+        req.set_result(inline_result);
         v1::CompleteTaskResponse resp;
         return s.workers->CompleteTask(&ctx, req, &resp);
     };
@@ -628,6 +629,18 @@ TEST_F(FarmTest, StaleResultIsRejected) {
     FrameRenderer renderer(*loaded.scene, loaded.settings);
     ScratchBuffer arena;
     std::string result = EncodeTileResult(ExecuteTileTask(renderer, current.task_index(), arena));
+
+    // Sent inline by the stale holder: refused, and not stored.
+    grpc::Status st = complete(first, stale, "", result);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << StatusText(st);
+    {
+        Ctx ctx;
+        v1::FindMissingBlobsRequest req;
+        req.add_hashes(Sha256Hex(result));
+        v1::FindMissingBlobsResponse resp;
+        ASSERT_TRUE(s.blobs->FindMissingBlobs(&ctx, req, &resp).ok());
+        EXPECT_EQ(resp.missing_size(), 1) << "a stale inline result was stored";
+    }
     std::string hash = UploadBlob(*s.blobs, result);
 
     {
@@ -640,7 +653,7 @@ TEST_F(FarmTest, StaleResultIsRejected) {
         grpc::Status st = s.workers->Heartbeat(&ctx, req, &resp);
         EXPECT_TRUE(!st.ok() || !resp.lease_valid()) << "an expired lease was reported valid";
     }
-    grpc::Status st = complete(first, stale, hash);
+    st = complete(first, stale, hash);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << StatusText(st);
     EXPECT_NE(st.error_message().find("lease"), std::string::npos) << st.error_message();
 

@@ -391,17 +391,22 @@ std::shared_ptr<const FrameRenderer> Worker::PrepareWithRetry(const Active& task
 void Worker::Complete(Active& task, const std::string& result) {
     const v1::Task& t = task.task;
     if (Dropped(task, "after rendering")) return;
+    // Small results travel inline with CompleteTask; larger ones are uploaded first.
+    const bool inline_result = !result.empty() && result.size() <= kMaxInlineResultBytes;
     std::string hash;
-    grpc::Status st = CallWithRetry("uploading the result", task, [&] {
-        try {
-            hash = UploadBlob(blobs_, result);
-            return grpc::Status::OK;
-        } catch (const std::exception& e) {
-            return grpc::Status(IsTransientText(e.what()) ? grpc::StatusCode::UNAVAILABLE
-                                                          : grpc::StatusCode::UNKNOWN,
-                                e.what());
-        }
-    });
+    grpc::Status st;
+    if (!inline_result) {
+        st = CallWithRetry("uploading the result", task, [&] {
+            try {
+                hash = UploadBlob(blobs_, result);
+                return grpc::Status::OK;
+            } catch (const std::exception& e) {
+                return grpc::Status(IsTransientText(e.what()) ? grpc::StatusCode::UNAVAILABLE
+                                                              : grpc::StatusCode::UNKNOWN,
+                                    e.what());
+            }
+        });
+    }
     if (!st.ok()) {
         if (IsTransient(st.error_code()) || task.abandoned) {
             spdlog::warn("{}: giving up on its result ({})", Describe(t), st.error_message());
@@ -420,7 +425,10 @@ void Worker::Complete(Active& task, const std::string& result) {
         req.set_worker_id(worker_id);
         req.set_task_id(t.task_id());
         req.set_lease_id(t.lease_id());
-        req.set_result_hash(hash);
+        if (inline_result)
+            req.set_result(result);
+        else
+            req.set_result_hash(hash);
         v1::CompleteTaskResponse resp;
         return workers_.CompleteTask(&ctx, req, &resp);
     });

@@ -1,13 +1,14 @@
 #pragma once
 
 // The worker loop: register, lease tile tasks, render them with the engine, heartbeat
-// while they run, upload results and complete them.
+// while they run, and complete them with their results (inline in CompleteTask up to
+// kMaxInlineResultBytes, else uploaded as a blob first).
 //
 // Concurrency model: one lease thread and `threads` render threads. The lease thread
 // holds at most one LeaseTask long poll at a time and asks for work only when a render
 // thread is idle, so the worker never sits on leased tasks it cannot start. Each render
 // thread runs one task at a time, start to finish (fetch bundle, render the tile with
-// its own ScratchBuffer, upload, complete); a tile is small, so tasks run side by side
+// its own ScratchBuffer, upload if large, complete); a tile is small, so tasks run side by side
 // rather than threads splitting a tile. A heartbeat thread reports every task in
 // flight (or, when idle, the worker itself) every heartbeat interval. Progress is 0
 // until the tile is rendered and 1 after: RenderTile reports nothing in between.
