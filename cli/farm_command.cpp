@@ -224,17 +224,22 @@ int RunFarmJob(const FarmOptions& o, const v1::JobSpec& spec,
     LocalFarm farm(state, interrupts);
     try {
         farm.Start(programs.coordinator, programs.worker, o.workers, threads);
-        FarmClient client(farm.Address());
-        std::string job_id = client.Submit(bundle, spec);
-        spdlog::info("job {} submitted", job_id);
-        FollowOptions follow;
-        follow.quiet = o.quiet;
-        follow.should_stop = [&farm] { return farm.Problem(); };
-        int code = FollowJob(client, job_id, follow);
-        if (code == 0) {
-            for (const std::string& path : FetchFrames(client, job_id, o.output_dir, true))
-                std::printf("%s\n", path.c_str());
-            std::fflush(stdout);
+        int code;
+        {
+            // The client (and its channel) goes before the farm stops, so the
+            // coordinator has no connection of ours to drain on shutdown.
+            FarmClient client(farm.Address());
+            std::string job_id = client.Submit(bundle, spec);
+            spdlog::info("job {} submitted", job_id);
+            FollowOptions follow;
+            follow.quiet = o.quiet;
+            follow.should_stop = [&farm] { return farm.Problem(); };
+            code = FollowJob(client, job_id, follow);
+            if (code == 0) {
+                for (const std::string& path : FetchFrames(client, job_id, o.output_dir, true))
+                    std::printf("%s\n", path.c_str());
+                std::fflush(stdout);
+            }
         }
         farm.Stop();
         return code;
