@@ -4,9 +4,9 @@
 //
 //   bench_cornell [--spp N] [--threads N] [--size N] [--scene PATH]
 
+#include <pmmintrin.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
-#include <pmmintrin.h>
 #include <xmmintrin.h>
 
 #include <atomic>
@@ -42,7 +42,8 @@ double RawEmbreeRaysPerSecond(const Scene& scene, int threads, uint64_t count) {
             uint64_t local = 0;
             for (uint64_t i = r.begin(); i != r.end(); ++i) {
                 uint64_t key = Hash(i, 7);
-                Vec3 o(Lerp(UniformAt(key, 0), b.lo.x, b.hi.x), Lerp(UniformAt(key, 1), b.lo.y, b.hi.y),
+                Vec3 o(Lerp(UniformAt(key, 0), b.lo.x, b.hi.x),
+                       Lerp(UniformAt(key, 1), b.lo.y, b.hi.y),
                        Lerp(UniformAt(key, 2), b.lo.z, b.hi.z));
                 Vec3 d = SampleUniformSphere(Vec2(UniformAt(key, 3), UniformAt(key, 4)));
                 float t;
@@ -63,10 +64,14 @@ int main(int argc, char** argv) {
     std::string scene_path = std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json";
     int spp = 16, threads = 2, size = 512;
     for (int i = 1; i + 1 < argc; i += 2) {
-        if (!std::strcmp(argv[i], "--spp")) spp = std::atoi(argv[i + 1]);
-        else if (!std::strcmp(argv[i], "--threads")) threads = std::atoi(argv[i + 1]);
-        else if (!std::strcmp(argv[i], "--size")) size = std::atoi(argv[i + 1]);
-        else if (!std::strcmp(argv[i], "--scene")) scene_path = argv[i + 1];
+        if (!std::strcmp(argv[i], "--spp"))
+            spp = std::atoi(argv[i + 1]);
+        else if (!std::strcmp(argv[i], "--threads"))
+            threads = std::atoi(argv[i + 1]);
+        else if (!std::strcmp(argv[i], "--size"))
+            size = std::atoi(argv[i + 1]);
+        else if (!std::strcmp(argv[i], "--scene"))
+            scene_path = argv[i + 1];
     }
     RenderOverrides ov;
     ov.spp = spp;
@@ -97,7 +102,8 @@ int main(int argc, char** argv) {
     std::printf("  ratio renderer/raw ray rate: %.2f\n", render_rays / raw);
     double mean = 0;
     for (int y = 0; y < image.height; ++y)
-        for (int x = 0; x < image.width; ++x) mean += image.At(x, y, 0) + image.At(x, y, 1) + image.At(x, y, 2);
+        for (int x = 0; x < image.width; ++x)
+            mean += image.At(x, y, 0) + image.At(x, y, 1) + image.At(x, y, 2);
     std::printf("  mean pixel value: %.4f\n", mean / (3.0 * image.width * image.height));
     return 0;
 }

@@ -11,11 +11,22 @@
 namespace tessera {
 
 std::string StatusText(const grpc::Status& status) {
-    static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
-                                   "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
-                                   "PERMISSION_DENIED", "RESOURCE_EXHAUSTED",
-                                   "FAILED_PRECONDITION", "ABORTED", "OUT_OF_RANGE",
-                                   "UNIMPLEMENTED", "INTERNAL", "UNAVAILABLE", "DATA_LOSS",
+    static const char* kNames[] = {"OK",
+                                   "CANCELLED",
+                                   "UNKNOWN",
+                                   "INVALID_ARGUMENT",
+                                   "DEADLINE_EXCEEDED",
+                                   "NOT_FOUND",
+                                   "ALREADY_EXISTS",
+                                   "PERMISSION_DENIED",
+                                   "RESOURCE_EXHAUSTED",
+                                   "FAILED_PRECONDITION",
+                                   "ABORTED",
+                                   "OUT_OF_RANGE",
+                                   "UNIMPLEMENTED",
+                                   "INTERNAL",
+                                   "UNAVAILABLE",
+                                   "DATA_LOSS",
                                    "UNAUTHENTICATED"};
     int code = status.error_code();
     std::string name = code >= 0 && code <= 16 ? kNames[code] : std::to_string(code);
@@ -68,7 +79,8 @@ std::string DownloadBlob(v1::BlobStore::StubInterface& stub, const std::string& 
     v1::BlobChunk chunk;
     while (reader->Read(&chunk)) out += chunk.data();
     grpc::Status st = reader->Finish();
-    if (!st.ok()) throw std::runtime_error("download of blob " + hash + " failed: " + StatusText(st));
+    if (!st.ok())
+        throw std::runtime_error("download of blob " + hash + " failed: " + StatusText(st));
     if (Sha256Hex(out) != hash)
         throw std::runtime_error("blob " + hash + " arrived corrupted (hash mismatch)");
     return out;

@@ -42,7 +42,8 @@ std::vector<BundleEntry> CollectBundle(const std::string& scene_path) {
         fs::path inside = local.lexically_relative(root);
         std::string bundle_path = inside.generic_string();
         if (inside.empty() || bundle_path.rfind("..", 0) == 0 || fs::path(rel).is_absolute())
-            throw std::runtime_error("'" + rel + "' is outside the scene's folder " + root.string() +
+            throw std::runtime_error("'" + rel + "' is outside the scene's folder " +
+                                     root.string() +
                                      ": a bundle holds only files beside or below the scene");
         if (std::string err = ValidateBundlePath(bundle_path); !err.empty())
             throw std::runtime_error(err);

@@ -14,9 +14,12 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
     if (o.has_width()) r.width = o.width();
     if (o.has_height()) r.height = o.height();
     if (o.has_sampler()) {
-        if (o.sampler() == "stratified") r.sampler = SamplerType::kStratified;
-        else if (o.sampler() == "independent") r.sampler = SamplerType::kIndependent;
-        else throw std::invalid_argument("unknown sampler '" + o.sampler() + "'");
+        if (o.sampler() == "stratified")
+            r.sampler = SamplerType::kStratified;
+        else if (o.sampler() == "independent")
+            r.sampler = SamplerType::kIndependent;
+        else
+            throw std::invalid_argument("unknown sampler '" + o.sampler() + "'");
     }
     return r;
 }
@@ -30,7 +33,8 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.tile_size) o.set_tile_size(*r.tile_size);
     if (r.width) o.set_width(*r.width);
     if (r.height) o.set_height(*r.height);
-    if (r.sampler) o.set_sampler(*r.sampler == SamplerType::kStratified ? "stratified" : "independent");
+    if (r.sampler)
+        o.set_sampler(*r.sampler == SamplerType::kStratified ? "stratified" : "independent");
     return o;
 }
 

@@ -19,10 +19,11 @@ std::string FramePath(const std::string& output_dir, const std::string& job_id,
         .string();
 }
 
-UnreadableResults::UnreadableResults(std::vector<int> task_indices, const std::string& first_error)
+UnreadableResults::UnreadableResults(std::vector<std::pair<int, int>> tasks,
+                                     const std::string& first_error)
     : std::runtime_error(
-          fmt::format("{} tile result(s) unreadable, first: {}", task_indices.size(), first_error)),
-      task_indices_(std::move(task_indices)) {}
+          fmt::format("{} tile result(s) unreadable, first: {}", tasks.size(), first_error)),
+      tasks_(std::move(tasks)) {}
 
 std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                        const std::string& output_dir, int64_t now_ms) {
@@ -42,9 +43,10 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                                              in.results.size(), plan.TotalTasks()));
 
     FrameAssembler assembler(plan);
-    std::vector<int> unreadable;
+    std::vector<std::pair<int, int>> unreadable;
     std::string first_error;
-    for (const auto& [index, hash] : in.results) {
+    for (size_t i = 0; i < in.results.size(); ++i) {
+        const auto& [index, hash] = in.results[i];
         try {
             if (hash.empty()) throw std::runtime_error("no result recorded");
             TileResult result = DecodeTileResult(blobs.ReadVerified(hash));
@@ -54,7 +56,7 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
             assembler.Add(std::move(result));
         } catch (const std::exception& e) {
             if (unreadable.empty()) first_error = fmt::format("tile {}: {}", index, e.what());
-            unreadable.push_back(index);
+            unreadable.emplace_back(index, i < in.completions.size() ? in.completions[i] : 0);
         }
     }
     if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error);
@@ -138,7 +140,7 @@ void AssemblyQueue::Assemble(const std::string& job_id, int frame) {
     } catch (const UnreadableResults& e) {
         spdlog::warn("job {} frame {}: {}; rendering those tiles again", job_id, frame, e.what());
         try {
-            scheduler_.RequeueDoneTasks(job_id, frame, e.TaskIndices());
+            scheduler_.RequeueDoneTasks(job_id, frame, e.Tasks());
         } catch (const std::exception& e2) {
             scheduler_.FailJob(job_id, fmt::format("frame {}: {}", frame, e2.what()));
         }

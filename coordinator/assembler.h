@@ -33,11 +33,12 @@ std::string FramePath(const std::string& output_dir, const std::string& job_id,
 // Tile results that could not be read back at assembly (missing or corrupt blobs).
 class UnreadableResults : public std::runtime_error {
   public:
-    UnreadableResults(std::vector<int> task_indices, const std::string& first_error);
-    const std::vector<int>& TaskIndices() const { return task_indices_; }
+    // `tasks`: (task index, its completion count when read).
+    UnreadableResults(std::vector<std::pair<int, int>> tasks, const std::string& first_error);
+    const std::vector<std::pair<int, int>>& Tasks() const { return tasks_; }
 
   private:
-    std::vector<int> task_indices_;
+    std::vector<std::pair<int, int>> tasks_;
 };
 
 // Assembles and writes one frame; returns the EXR's path. Throws UnreadableResults

@@ -494,7 +494,7 @@ FrameAssemblyInput Scheduler::GetAssemblyInput(const std::string& job_id, int fr
     in.job_running = job.state == v1::JOB_STATE_RUNNING;
     in.settings = job.settings;
     in.started_ms = row->started_ms;
-    in.results = store_.FrameResults(*row);
+    in.results = store_.FrameResults(*row, &in.completions);
     return in;
 }
 
@@ -522,7 +522,7 @@ void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::st
 }
 
 void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame,
-                                 const std::vector<int>& indices) {
+                                 const std::vector<std::pair<int, int>>& tasks) {
     const int64_t id = ParseJobId(job_id);
     {
         std::lock_guard lock(mu_);
@@ -531,9 +531,9 @@ void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame,
             ThrowError(ErrorCode::kNotFound, fmt::format("{} has no frame {}", job_id, frame));
         SqliteTransaction txn(store_.Db());
         int requeued = 0;
-        for (int index : indices)
+        for (const auto& [index, completions] : tasks)
             if (index >= 0 && index < row->tasks_total)
-                requeued += store_.RequeueDoneTask(row->first_task_id + index) ? 1 : 0;
+                requeued += store_.RequeueDoneTask(row->first_task_id + index, completions) ? 1 : 0;
         store_.UncountTasksDone(id, frame, requeued);
         txn.Commit();
         spdlog::warn("job {} frame {}: {} finished task(s) re-queued", job_id, frame, requeued);

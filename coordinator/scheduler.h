@@ -80,6 +80,7 @@ struct FrameAssemblyInput {
     JobSettings settings;
     int64_t started_ms = 0;
     std::vector<std::pair<int, std::string>> results;  // (task index, blob), task order
+    std::vector<int> completions;  // each task's completion count when `results` was read
 };
 
 class SchedulerListener {
@@ -141,7 +142,10 @@ class Scheduler {
     void FrameWritten(const std::string& job_id, int frame, const std::string& exr_path);
     // Sends done tasks of a frame back to the queue: their results could not be read
     // back at assembly. They are leased and rendered again like new.
-    void RequeueDoneTasks(const std::string& job_id, int frame, const std::vector<int>& indices);
+    // `tasks` holds (task index, completion count seen): a task completed again since
+    // then keeps its new result.
+    void RequeueDoneTasks(const std::string& job_id, int frame,
+                          const std::vector<std::pair<int, int>>& tasks);
     // Fails a job that is not finished yet (e.g. its frame could not be written).
     void FailJob(const std::string& job_id, const std::string& message);
     // Frames whose tasks are all done but that were never written (a crash came first).

@@ -171,8 +171,9 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     release_task_ = db_.Prepare(
         "UPDATE tasks SET state = 0, attempts = attempts - 1 "
         "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
-    requeue_done_ =
-        db_.Prepare("UPDATE tasks SET state = 0, result_hash = '' WHERE id = ?1 AND state = 2");
+    requeue_done_ = db_.Prepare(
+        "UPDATE tasks SET state = 0, result_hash = '' WHERE id = ?1 AND state = 2 AND "
+        "completions = ?2");
     uncount_frame_done_ = db_.Prepare(
         "UPDATE frames SET tasks_done = tasks_done - ?3 WHERE job_id = ?1 AND frame = ?2");
     uncount_job_done_ = db_.Prepare("UPDATE jobs SET tasks_done = tasks_done - ?2 WHERE id = ?1");
@@ -180,7 +181,8 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
         db_.Prepare("UPDATE tasks SET state = 3 WHERE id BETWEEN ?1 AND ?2 AND state IN (0, 1)");
     leased_tasks_ = db_.Prepare(Sql("SELECT ", kTaskColumns, " FROM tasks WHERE state = 1"));
     frame_results_ = db_.Prepare(
-        "SELECT task_index, result_hash FROM tasks WHERE id BETWEEN ?1 AND ?2 ORDER BY id");
+        "SELECT task_index, result_hash, completions FROM tasks WHERE id BETWEEN ?1 AND ?2 "
+        "ORDER BY id");
 
     insert_failure_ = db_.Prepare(
         "INSERT INTO failures(job_id, frame, task_index, worker, message, attempt, at_ms) "
@@ -418,8 +420,8 @@ bool Store::ReleaseTask(int64_t task_id, int64_t lease_id, int64_t job_id) {
     return true;
 }
 
-bool Store::RequeueDoneTask(int64_t task_id) {
-    requeue_done_.Bind(task_id).Run();
+bool Store::RequeueDoneTask(int64_t task_id, int completions) {
+    requeue_done_.Bind(task_id, completions).Run();
     return db_.Changes() == 1;
 }
 
@@ -439,12 +441,15 @@ std::vector<TaskRow> Store::LeasedTasks() {
     return tasks;
 }
 
-std::vector<std::pair<int, std::string>> Store::FrameResults(const FrameRow& frame) {
+std::vector<std::pair<int, std::string>> Store::FrameResults(const FrameRow& frame,
+                                                             std::vector<int>* completions) {
     std::vector<std::pair<int, std::string>> out;
     out.reserve(frame.tasks_total);
     frame_results_.Bind(frame.first_task_id, frame.first_task_id + frame.tasks_total - 1);
-    while (frame_results_.Step())
+    while (frame_results_.Step()) {
         out.emplace_back(int(frame_results_.Int(0)), frame_results_.Text(1));
+        if (completions) completions->push_back(int(frame_results_.Int(2)));
+    }
     return out;
 }
 

@@ -141,14 +141,19 @@ class Store {
     // neither its attempt nor the job's lease count keep it.
     bool ReleaseTask(int64_t task_id, int64_t lease_id, int64_t job_id);
     // A done task becomes pending again (its result was lost); true if it was done.
-    bool RequeueDoneTask(int64_t task_id);
+    // Re-queues a done task only if it has been completed exactly `completions` times,
+    // i.e. not again since its result was found unreadable.
+    bool RequeueDoneTask(int64_t task_id, int completions);
     // Takes `n` back from the frame's and the job's tasks done.
     void UncountTasksDone(int64_t job_id, int frame, int n);
     // Pending and leased tasks in [first, last] are dropped (cancel, job failure).
     void DropTasks(int64_t first_task_id, int64_t last_task_id);
     std::vector<TaskRow> LeasedTasks();
     // (task index, result hash) of a frame's tasks, in task order.
-    std::vector<std::pair<int, std::string>> FrameResults(const FrameRow& frame);
+    // (task index, result blob) in task order; *completions (if given) gets each task's
+    // completion count alongside.
+    std::vector<std::pair<int, std::string>> FrameResults(const FrameRow& frame,
+                                                          std::vector<int>* completions = nullptr);
 
     void InsertFailure(int64_t job_id, const FailureRow& failure, int64_t now_ms);
     // Most recent first.

@@ -485,6 +485,24 @@ TEST_F(CoordinatorTest, ADamagedTileResultIsRenderedAgain) {
     ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0);
 }
 
+// An assembly that found a result unreadable re-queues the task only if nobody has
+// completed it again since: a newer, good result is never thrown away.
+TEST_F(CoordinatorTest, RequeueSparesATaskCompletedSinceItsResultWasRead) {
+    start_ = false;
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    FrameAssemblyInput in = C().GetScheduler().GetAssemblyInput(job, 0);
+    ASSERT_EQ(in.completions.size(), in.results.size());
+    EXPECT_EQ(in.completions[3], 1);
+    C().GetScheduler().RequeueDoneTasks(job, 0, {{3, in.completions[3] + 1}});
+    EXPECT_FALSE(LeaseNow(w, 0).has_value());
+    C().GetScheduler().RequeueDoneTasks(job, 0, {{3, in.completions[3]}});
+    std::optional<LeasedTask> again = LeaseNow(w, 100);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(again->task_index, 3);
+}
+
 TEST_F(CoordinatorTest, WatchSendsSnapshotThenChangesAndTheFinalState) {
     std::string job = C().SubmitJob(SceneSpec());
     RecordingWatcher watcher;

@@ -71,7 +71,7 @@ TEST(TriangleLight, SolidAngleOfASquareMatchesTheClosedForm) {
     // A unit square at height 1 centred above the point: solid angle 4 asin(1/ (1 + 4))
     // from the formula for a rectangle a x b at distance d centred on the axis:
     // 4 arcsin(ab / sqrt((a^2 + 4d^2)(b^2 + 4d^2))).
-    std::vector<Vec3> tris = {Vec3(-0.5f, -0.5f, 1), Vec3(0.5f, 0.5f, 1), Vec3(0.5f, -0.5f, 1),
+    std::vector<Vec3> tris = {Vec3(-0.5f, -0.5f, 1), Vec3(0.5f, 0.5f, 1),  Vec3(0.5f, -0.5f, 1),
                               Vec3(-0.5f, -0.5f, 1), Vec3(-0.5f, 0.5f, 1), Vec3(0.5f, 0.5f, 1)};
     auto light = MakeTriangleAreaLight(tris, Rgb(1), true);
     LightSampleContext ctx{Vec3(0, 0, 0), Vec3(0, 0, 1)};

@@ -171,8 +171,9 @@ Image RenderPenumbra(SamplerType sampler, uint64_t seed) {
     const Material* white = Diffuse(scene, 0.8f);
     scene.AddMesh(MakeQuad(Vec3(-5, 0, -5), Vec3(-5, 0, 5), Vec3(5, 0, 5), Vec3(5, 0, -5)), white);
     // The blocker's edge at x = 0 splits the light's view of the spot below.
-    scene.AddMesh(MakeQuad(Vec3(-3, 0.5f, -3), Vec3(-3, 0.5f, 3), Vec3(0, 0.5f, 3), Vec3(0, 0.5f, -3)),
-                  white);
+    scene.AddMesh(
+        MakeQuad(Vec3(-3, 0.5f, -3), Vec3(-3, 0.5f, 3), Vec3(0, 0.5f, 3), Vec3(0, 0.5f, -3)),
+        white);
     Emission e{Rgb(5), false};
     scene.AddMesh(MakeQuad(Vec3(-0.5f, 1, -0.5f), Vec3(0.5f, 1, -0.5f), Vec3(0.5f, 1, 0.5f),
                            Vec3(-0.5f, 1, 0.5f)),
@@ -232,11 +233,13 @@ TEST(Determinism, ThreadCountDoesNotChangeTheImage) {
     Image one = RenderFrameLocal(scene, s, 1);
     Image two = RenderFrameLocal(scene, s, 2);
     ASSERT_EQ(one.pixels.size(), two.pixels.size());
-    EXPECT_EQ(0, std::memcmp(one.pixels.data(), two.pixels.data(), one.pixels.size() * sizeof(float)));
+    EXPECT_EQ(0,
+              std::memcmp(one.pixels.data(), two.pixels.data(), one.pixels.size() * sizeof(float)));
     // And a different seed is a different image (the seed reaches the streams).
     s.seed = 43;
     Image other = RenderFrameLocal(scene, s, 2);
-    EXPECT_NE(0, std::memcmp(one.pixels.data(), other.pixels.data(), one.pixels.size() * sizeof(float)));
+    EXPECT_NE(
+        0, std::memcmp(one.pixels.data(), other.pixels.data(), one.pixels.size() * sizeof(float)));
 }
 
 }  // namespace

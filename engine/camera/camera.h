@@ -7,8 +7,8 @@
 namespace tessera {
 
 struct CameraSample {
-    Vec2 p_film;  // raster coordinates in [0, width) x [0, height)
-    Vec2 p_lens;  // [0,1)^2
+    Vec2 p_film;     // raster coordinates in [0, width) x [0, height)
+    Vec2 p_lens;     // [0,1)^2
     float time = 0;  // [0,1) across the shutter interval
 };
 

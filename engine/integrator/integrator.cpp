@@ -11,8 +11,8 @@ const char* const* IntegratorNames() {
     return kNames;
 }
 
-std::unique_ptr<Integrator> MakeIntegrator(const std::string& name, const IntegratorSettings& settings,
-                                           const Scene& scene) {
+std::unique_ptr<Integrator> MakeIntegrator(const std::string& name,
+                                           const IntegratorSettings& settings, const Scene& scene) {
     if (name == "path") return std::make_unique<PathIntegrator>(scene, settings, false);
     if (name == "direct") return std::make_unique<PathIntegrator>(scene, settings, true);
     throw std::invalid_argument("unknown integrator '" + name + "' (known: path, direct)");

@@ -28,8 +28,8 @@ class Integrator {
 // Names: "path" (next-event estimation + MIS, the reference) and "direct" (emission
 // plus one bounce of direct light, with MIS; specular chains followed). Throws
 // std::invalid_argument for an unknown name.
-std::unique_ptr<Integrator> MakeIntegrator(const std::string& name, const IntegratorSettings& settings,
-                                           const Scene& scene);
+std::unique_ptr<Integrator> MakeIntegrator(const std::string& name,
+                                           const IntegratorSettings& settings, const Scene& scene);
 // The names MakeIntegrator accepts, for help texts and validation.
 const char* const* IntegratorNames();
 

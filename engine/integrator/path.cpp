@@ -4,14 +4,15 @@
 
 namespace tessera {
 
-SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler, ScratchBuffer& arena) const {
+SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler,
+                               ScratchBuffer& arena) const {
     SampleValue out;
     Rgb L, beta(1);
     Ray ray = camera_ray;
     bool specular_bounce = false;
-    float bsdf_pdf = 0;      // solid-angle pdf of the BSDF sample that made `ray`
-    float eta_scale = 1;     // undoes radiance scaling by refraction for Russian roulette
-    LightSampleContext prev; // the vertex `ray` left from
+    float bsdf_pdf = 0;       // solid-angle pdf of the BSDF sample that made `ray`
+    float eta_scale = 1;      // undoes radiance scaling by refraction for Russian roulette
+    LightSampleContext prev;  // the vertex `ray` left from
     bool emission_only = false;
     const LightSampler& light_sampler = scene_.GetLightSampler();
 
@@ -71,7 +72,8 @@ SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler, ScratchB
             float pick_pmf;
             const Light* light = light_sampler.Sample(u_light_pick, &pick_pmf);
             if (light) {
-                if (auto ls = light->SampleLi(ctx, u_light); ls && ls->pdf > 0 && !ls->L.IsBlack()) {
+                if (auto ls = light->SampleLi(ctx, u_light);
+                    ls && ls->pdf > 0 && !ls->L.IsBlack()) {
                     Vec3 wi_local = si.shading.ToLocal(ls->wi);
                     Rgb f = bsdf->Eval(wo_local, wi_local, TransportMode::kRadiance) *
                             AbsDot(ls->wi, si.shading.n);

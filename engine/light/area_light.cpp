@@ -14,7 +14,8 @@ class TriangleAreaLight final : public Light {
         std::vector<float> areas(vertices_.size() / 3);
         normals_.resize(areas.size());
         for (size_t i = 0; i < areas.size(); ++i) {
-            Vec3 c = Cross(vertices_[3 * i + 1] - vertices_[3 * i], vertices_[3 * i + 2] - vertices_[3 * i]);
+            Vec3 c = Cross(vertices_[3 * i + 1] - vertices_[3 * i],
+                           vertices_[3 * i + 2] - vertices_[3 * i]);
             float len = Length(c);
             areas[i] = 0.5f * len;
             normals_[i] = len > 0 ? c / len : Vec3(0, 0, 1);

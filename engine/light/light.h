@@ -25,11 +25,11 @@ struct LightSampleContext {
 };
 
 struct LightLiSample {
-    Rgb L;         // radiance arriving at ctx.p along -wi (before visibility)
-    Vec3 wi;       // unit direction from ctx.p toward the light
-    float pdf = 0; // solid-angle density; 1 for delta lights
-    Vec3 p_light;  // the point on the light; for directional and infinite lights, a point
-                   // beyond the scene along wi
+    Rgb L;          // radiance arriving at ctx.p along -wi (before visibility)
+    Vec3 wi;        // unit direction from ctx.p toward the light
+    float pdf = 0;  // solid-angle density; 1 for delta lights
+    Vec3 p_light;   // the point on the light; for directional and infinite lights, a point
+                    // beyond the scene along wi
 };
 
 class Light {

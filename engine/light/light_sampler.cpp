@@ -7,7 +7,8 @@ namespace tessera {
 LightSampler::LightSampler(const std::vector<const Light*>& lights) : lights_(lights) {
     std::vector<float> power(lights_.size());
     for (size_t i = 0; i < lights_.size(); ++i) index_[lights_[i]] = static_cast<int>(i);
-    for (size_t i = 0; i < lights_.size(); ++i) power[i] = std::max(0.0f, lights_[i]->Phi().Luminance());
+    for (size_t i = 0; i < lights_.size(); ++i)
+        power[i] = std::max(0.0f, lights_[i]->Phi().Luminance());
     // A scene whose lights all have zero power still samples them uniformly.
     bool all_zero = std::all_of(power.begin(), power.end(), [](float p) { return p == 0; });
     if (all_zero) std::fill(power.begin(), power.end(), 1.0f);

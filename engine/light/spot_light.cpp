@@ -52,8 +52,8 @@ std::unique_ptr<Light> MakeSpotLight(const Vec3& position, const Vec3& target, R
     float cos_outer = std::cos(Radians(cone_angle_deg));
     float cos_inner = std::cos(Radians(std::min(falloff_start_deg, cone_angle_deg)));
     if (cos_inner <= cos_outer) cos_inner = cos_outer + 1e-6f;
-    return std::make_unique<SpotLight>(position, Normalize(target - position), intensity,
-                                       cos_outer, cos_inner);
+    return std::make_unique<SpotLight>(position, Normalize(target - position), intensity, cos_outer,
+                                       cos_inner);
 }
 
 }  // namespace tessera

@@ -26,8 +26,8 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
 TileResult ExecuteTileTask(const FrameRenderer& renderer, int task_index, ScratchBuffer& arena) {
     const auto& tiles = renderer.Tiles();
     if (task_index < 0 || task_index >= static_cast<int>(tiles.size()))
-        throw std::invalid_argument(fmt::format("tile task {} does not exist (frame has {})",
-                                                task_index, tiles.size()));
+        throw std::invalid_argument(
+            fmt::format("tile task {} does not exist (frame has {})", task_index, tiles.size()));
     TileFilm film = renderer.RenderTile(tiles[task_index], arena);
     return TileResult{task_index, film.Region(), film.Data()};
 }
@@ -84,8 +84,8 @@ TileResult DecodeTileResult(const std::string& bytes) {
     r.region.hi.y = Get<int32_t>(bytes, &at);
     uint32_t channels = Get<uint32_t>(bytes, &at);
     if (channels != TileFilm::kChannels)
-        throw std::runtime_error(fmt::format("tile result has {} channels, expected {}", channels,
-                                             TileFilm::kChannels));
+        throw std::runtime_error(
+            fmt::format("tile result has {} channels, expected {}", channels, TileFilm::kChannels));
     if (r.region.Empty() || r.region.Width() > 1 << 16 || r.region.Height() > 1 << 16)
         throw std::runtime_error("tile result has an invalid region");
     size_t count = size_t(r.region.Width()) * r.region.Height() * channels;

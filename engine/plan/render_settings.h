@@ -15,8 +15,8 @@ namespace tessera {
 struct RenderSettings {
     std::string integrator = "path";  // path | direct
     int spp = 16;
-    int max_depth = 64;       // longest path, counted in bounces
-    int rr_depth = 3;         // Russian roulette starts after this many bounces
+    int max_depth = 64;  // longest path, counted in bounces
+    int rr_depth = 3;    // Russian roulette starts after this many bounces
     SamplerType sampler = SamplerType::kStratified;
     uint64_t seed = 0;
     int tile_size = 32;

@@ -11,10 +11,10 @@ class Light;
 // What a ray hit.
 struct SurfaceInteraction {
     Vec3 p;
-    Vec3 ng;         // geometric normal, as the shape defines its outside
-    Frame shading;   // shading frame (interpolated normal for meshes with normals)
+    Vec3 ng;        // geometric normal, as the shape defines its outside
+    Frame shading;  // shading frame (interpolated normal for meshes with normals)
     Vec2 uv;
-    float t = 0;     // ray distance
+    float t = 0;                         // ray distance
     const Material* material = nullptr;  // null: an interface-less emitter or an error
     const Light* area_light = nullptr;   // set when the hit surface emits
     TextureContext TexContext() const { return {p, uv}; }

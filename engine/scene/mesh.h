@@ -13,8 +13,8 @@ namespace tessera {
 
 struct TriangleMesh {
     std::vector<Vec3> positions;
-    std::vector<Vec3> normals;  // empty or one per position
-    std::vector<Vec2> uvs;      // empty or one per position
+    std::vector<Vec3> normals;      // empty or one per position
+    std::vector<Vec2> uvs;          // empty or one per position
     std::vector<uint32_t> indices;  // 3 per triangle
 
     size_t NumTriangles() const { return indices.size() / 3; }
