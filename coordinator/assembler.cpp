@@ -117,11 +117,13 @@ void AssemblyQueue::Run() {
         if (stop_) return;
         auto [job_id, frame] = queue_.front();
         queue_.pop_front();
+        // Forget it before assembling: a frame that becomes ready again meanwhile (its
+        // unreadable tiles re-rendered) must be queued anew, not dropped as a duplicate.
+        queued_.erase({job_id, frame});
         busy_ = true;
         lock.unlock();
         Assemble(job_id, frame);
         lock.lock();
-        queued_.erase({job_id, frame});
         busy_ = false;
         cv_.notify_all();
     }
