@@ -7,6 +7,22 @@
 namespace tessera {
 namespace {
 
+// A point p (normal n) chosen uniformly on an emitter of total `area`, seen from ctx:
+// the sample with its density converted from area to solid angle. Empty when the
+// point is behind a one-sided emitter or seen exactly edge-on.
+std::optional<LightLiSample> AreaSampleToSolidAngle(const LightSampleContext& ctx, const Vec3& p,
+                                                    const Vec3& n, float area, bool two_sided,
+                                                    Rgb radiance) {
+    Vec3 d = p - ctx.p;
+    float dist2 = LengthSquared(d);
+    if (dist2 == 0) return std::nullopt;
+    Vec3 wi = d / std::sqrt(dist2);
+    float cos_light = Dot(n, -wi);
+    if (!two_sided && cos_light <= 0) return std::nullopt;
+    if (cos_light == 0) return std::nullopt;
+    return LightLiSample{radiance, wi, dist2 / (std::abs(cos_light) * area), p};
+}
+
 class TriangleAreaLight final : public Light {
   public:
     TriangleAreaLight(std::vector<Vec3> triangles, Rgb radiance, bool two_sided)
@@ -34,16 +50,7 @@ class TriangleAreaLight final : public Light {
         Vec2 b = SampleUniformTriangle(Vec2(u_re, u.y));
         const Vec3* v = &vertices_[3 * tri];
         Vec3 p = v[0] * b.x + v[1] * b.y + v[2] * (1 - b.x - b.y);
-        Vec3 n = normals_[tri];
-        Vec3 d = p - ctx.p;
-        float dist2 = LengthSquared(d);
-        if (dist2 == 0) return std::nullopt;
-        Vec3 wi = d / std::sqrt(dist2);
-        float cos_light = Dot(n, -wi);
-        if (!two_sided_ && cos_light <= 0) return std::nullopt;
-        if (cos_light == 0) return std::nullopt;
-        float pdf = dist2 / (std::abs(cos_light) * area_);
-        return LightLiSample{radiance_, wi, pdf, p};
+        return AreaSampleToSolidAngle(ctx, p, normals_[tri], area_, two_sided_, radiance_);
     }
 
     float PdfLi(const LightSampleContext& ctx, const Vec3& wi, const Vec3& p_light,
@@ -125,16 +132,8 @@ class SphereAreaLight final : public Light {
   private:
     std::optional<LightLiSample> SampleByArea(const LightSampleContext& ctx, Vec2 u) const {
         Vec3 n = SampleUniformSphere(u);
-        Vec3 p = center_ + n * radius_;
-        Vec3 d = p - ctx.p;
-        float dist2 = LengthSquared(d);
-        if (dist2 == 0) return std::nullopt;
-        Vec3 wi = d / std::sqrt(dist2);
-        float cos_light = Dot(n, -wi);
-        if (!two_sided_ && cos_light <= 0) return std::nullopt;
-        if (cos_light == 0) return std::nullopt;
-        float pdf = dist2 / (std::abs(cos_light) * 4 * kPi * radius_ * radius_);
-        return LightLiSample{radiance_, wi, pdf, p};
+        return AreaSampleToSolidAngle(ctx, center_ + n * radius_, n, 4 * kPi * radius_ * radius_,
+                                      two_sided_, radiance_);
     }
 
     Vec3 center_;
