@@ -1,5 +1,6 @@
 #include "light/area_light.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/sampling.h"
@@ -21,6 +22,30 @@ std::optional<LightLiSample> AreaSampleToSolidAngle(const LightSampleContext& ct
     if (!two_sided && cos_light <= 0) return std::nullopt;
     if (cos_light == 0) return std::nullopt;
     return LightLiSample{radiance, wi, dist2 / (std::abs(cos_light) * area), p};
+}
+
+// A direction leaving a surface point with normal n: cosine-weighted on the front side,
+// or on either side with probability 1/2 when two-sided (u.x picks the side).
+std::optional<LightLeSample> EmitFromSurface(const Vec3& p, const Vec3& n, float area,
+                                             bool two_sided, Rgb radiance, Vec2 u, float time) {
+    bool back = false;
+    if (two_sided) {
+        back = u.x >= 0.5f;
+        u.x = std::min(back ? 2 * u.x - 1 : 2 * u.x, kOneMinusEpsilon);
+    }
+    Vec3 local = SampleCosineHemisphere(u);
+    if (back) local.z = -local.z;
+    Vec3 d = Frame(n).ToWorld(local);
+    float pdf_dir = CosineHemispherePdf(std::abs(local.z)) * (two_sided ? 0.5f : 1.0f);
+    if (pdf_dir == 0) return std::nullopt;
+    return LightLeSample{Ray{p, d, time}, n, radiance, 1 / area, pdf_dir};
+}
+
+// SampleLe's direction density for a ray leaving a point with normal n.
+float EmittedDirectionPdf(const Vec3& n, const Vec3& d, bool two_sided) {
+    float cos_theta = Dot(n, d);
+    if (two_sided) return 0.5f * CosineHemispherePdf(std::abs(cos_theta));
+    return cos_theta > 0 ? CosineHemispherePdf(cos_theta) : 0;
 }
 
 class TriangleAreaLight final : public Light {
@@ -60,6 +85,21 @@ class TriangleAreaLight final : public Light {
         return DistanceSquared(ctx.p, p_light) / (cos_light * area_);
     }
 
+    std::optional<LightLeSample> SampleLe(Vec2 u_pos, Vec2 u_dir, float time) const override {
+        if (area_ <= 0) return std::nullopt;
+        float pmf, u_re;
+        int tri = distribution_.SampleDiscrete(u_pos.x, &pmf, &u_re);
+        Vec2 b = SampleUniformTriangle(Vec2(u_re, u_pos.y));
+        const Vec3* v = &vertices_[3 * tri];
+        Vec3 p = v[0] * b.x + v[1] * b.y + v[2] * (1 - b.x - b.y);
+        return EmitFromSurface(p, normals_[tri], area_, two_sided_, radiance_, u_dir, time);
+    }
+
+    void PdfLe(const Ray& ray, const Vec3& n, float* pdf_pos, float* pdf_dir) const override {
+        *pdf_pos = area_ > 0 ? 1 / area_ : 0;
+        *pdf_dir = EmittedDirectionPdf(n, ray.d, two_sided_);
+    }
+
     Rgb L(const Vec3&, const Vec3& n, Vec2, const Vec3& w) const override {
         if (!two_sided_ && Dot(n, w) <= 0) return {};
         return radiance_;
@@ -80,9 +120,7 @@ class SphereAreaLight final : public Light {
         : center_(center), radius_(radius), radiance_(radiance), two_sided_(two_sided) {}
 
     LightType Type() const override { return LightType::kArea; }
-    Rgb Phi() const override {
-        return radiance_ * (kPi * 4 * kPi * radius_ * radius_ * (two_sided_ ? 2.0f : 1.0f));
-    }
+    Rgb Phi() const override { return radiance_ * (kPi * Area() * (two_sided_ ? 2.0f : 1.0f)); }
 
     std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2 u) const override {
         float dist2 = DistanceSquared(ctx.p, center_);
@@ -124,16 +162,28 @@ class SphereAreaLight final : public Light {
         return 1 / (2 * kPi * (sin2_max / (1 + cos_max)));
     }
 
+    std::optional<LightLeSample> SampleLe(Vec2 u_pos, Vec2 u_dir, float time) const override {
+        Vec3 n = SampleUniformSphere(u_pos);
+        return EmitFromSurface(center_ + n * radius_, n, Area(), two_sided_, radiance_, u_dir,
+                               time);
+    }
+
+    void PdfLe(const Ray& ray, const Vec3& n, float* pdf_pos, float* pdf_dir) const override {
+        *pdf_pos = 1 / Area();
+        *pdf_dir = EmittedDirectionPdf(n, ray.d, two_sided_);
+    }
+
     Rgb L(const Vec3&, const Vec3& n, Vec2, const Vec3& w) const override {
         if (!two_sided_ && Dot(n, w) <= 0) return {};
         return radiance_;
     }
 
   private:
+    float Area() const { return 4 * kPi * radius_ * radius_; }
+
     std::optional<LightLiSample> SampleByArea(const LightSampleContext& ctx, Vec2 u) const {
         Vec3 n = SampleUniformSphere(u);
-        return AreaSampleToSolidAngle(ctx, center_ + n * radius_, n, 4 * kPi * radius_ * radius_,
-                                      two_sided_, radiance_);
+        return AreaSampleToSolidAngle(ctx, center_ + n * radius_, n, Area(), two_sided_, radiance_);
     }
 
     Vec3 center_;

@@ -1,5 +1,8 @@
-// Directional light: parallel rays from infinitely far away (the sun, roughly).
+// Directional light: parallel rays from infinitely far away (the sun, roughly). Light
+// paths leave from a disk of the scene's bounding radius that faces the light, beyond the
+// scene: every ray that can reach the scene crosses it.
 
+#include "core/sampling.h"
 #include "light/lights.h"
 
 namespace tessera {
@@ -13,6 +16,7 @@ class DirectionalLight final : public Light {
     Rgb Phi() const override { return irradiance_ * (kPi * scene_radius_ * scene_radius_); }
     void Preprocess(const Bounds3& bounds) override {
         scene_radius_ = std::max(bounds.Radius(), 1e-3f);
+        scene_center_ = bounds.Center();
     }
 
     std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2) const override {
@@ -22,10 +26,25 @@ class DirectionalLight final : public Light {
         return 0;
     }
 
+    std::optional<LightLeSample> SampleLe(Vec2 u_pos, Vec2, float time) const override {
+        Vec2 disk = SampleUniformDiskConcentric(u_pos) * scene_radius_;
+        Frame frame(w_light_);
+        // Two radii out: the disk clears the bounding sphere everywhere, not only off-axis.
+        Vec3 o = scene_center_ + frame.ToWorld(Vec3(disk.x, disk.y, 2 * scene_radius_));
+        return LightLeSample{Ray{o, -w_light_, time}, -w_light_, irradiance_, DiskPdf(), 1};
+    }
+    void PdfLe(const Ray&, const Vec3&, float* pdf_pos, float* pdf_dir) const override {
+        *pdf_pos = DiskPdf();
+        *pdf_dir = 1;
+    }
+
   private:
+    float DiskPdf() const { return 1 / (kPi * scene_radius_ * scene_radius_); }
+
     Vec3 w_light_;  // toward the light
     Rgb irradiance_;
     float scene_radius_ = 1;
+    Vec3 scene_center_;
 };
 
 }  // namespace

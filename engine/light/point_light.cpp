@@ -1,5 +1,6 @@
 // Point light: an isotropic emitter of intensity I (W/sr); irradiance falls off as 1/r^2.
 
+#include "core/sampling.h"
 #include "light/lights.h"
 
 namespace tessera {
@@ -19,6 +20,16 @@ class PointLight final : public Light {
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return 0;
+    }
+
+    // Uniform over the sphere of directions: every photon carries 4 pi I.
+    std::optional<LightLeSample> SampleLe(Vec2, Vec2 u_dir, float time) const override {
+        return LightLeSample{Ray{p_, SampleUniformSphere(u_dir), time}, Vec3(), intensity_, 1,
+                             UniformSpherePdf()};
+    }
+    void PdfLe(const Ray&, const Vec3&, float* pdf_pos, float* pdf_dir) const override {
+        *pdf_pos = 1;
+        *pdf_dir = UniformSpherePdf();
     }
 
   private:

@@ -1,8 +1,10 @@
 // Spot light: a point light restricted to a cone, with a smoothstep falloff between the
-// inner (falloff start) and outer (cone) half-angles.
+// inner (falloff start) and outer (cone) half-angles. Light paths leave uniformly within
+// the outer cone, weighted by the falloff.
 
 #include <algorithm>
 
+#include "core/sampling.h"
 #include "light/lights.h"
 
 namespace tessera {
@@ -13,8 +15,9 @@ class SpotLight final : public Light {
     SpotLight(const Vec3& p, const Vec3& axis, Rgb intensity, float cos_outer, float cos_inner)
         : p_(p), axis_(axis), intensity_(intensity), cos_outer_(cos_outer), cos_inner_(cos_inner) {}
     LightType Type() const override { return LightType::kDeltaPosition; }
-    // Exact for the linear ramp in cos theta; the smoothstep differs by a few percent,
-    // which only affects how often the light is chosen, not the estimate.
+    // Exact: the smoothstep s(t) = 3t^2 - 2t^3 of t linear in cos theta integrates over
+    // [0, 1] to 1/2, as the linear ramp does, so the falloff band contributes
+    // (cos_inner - cos_outer) / 2 of the 2 pi-weighted cosine range.
     Rgb Phi() const override {
         return intensity_ * (2 * kPi * (1 - 0.5f * (cos_inner_ + cos_outer_)));
     }
@@ -30,6 +33,17 @@ class SpotLight final : public Light {
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return 0;
+    }
+
+    std::optional<LightLeSample> SampleLe(Vec2, Vec2 u_dir, float time) const override {
+        Vec3 local = SampleUniformCone(u_dir, cos_outer_);
+        Vec3 d = Frame(axis_).ToWorld(local);
+        return LightLeSample{Ray{p_, d, time}, Vec3(), intensity_ * Falloff(local.z), 1,
+                             UniformConePdf(cos_outer_)};
+    }
+    void PdfLe(const Ray& ray, const Vec3&, float* pdf_pos, float* pdf_dir) const override {
+        *pdf_pos = 1;
+        *pdf_dir = Dot(ray.d, axis_) >= cos_outer_ ? UniformConePdf(cos_outer_) : 0;
     }
 
   private:
