@@ -17,6 +17,7 @@ PACKAGES=(
   libcli11-dev
   libtinyobjloader-dev
   libxxhash-dev libzstd-dev libssl-dev
+  libnanoflann-dev
   python3-yaml
 )
 
