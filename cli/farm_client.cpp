@@ -104,6 +104,21 @@ int FramesDone(const v1::JobStatus& job) {
     return done;
 }
 
+std::string StageProgress(const v1::FrameStatus& f) {
+    if (f.stage().empty()) return "";
+    const std::string label = f.stage_label().empty() ? f.stage() : f.stage_label();
+    const std::string count =
+        std::to_string(f.stage_done()) + "/" + std::to_string(f.stage_total());
+    // "irradiance pass 2/3" already counts passes: its tiles go in parentheses.
+    return label.find('/') == std::string::npos ? label + " " + count : label + " (" + count + ")";
+}
+
+const v1::FrameStatus* CurrentFrame(const v1::JobStatus& job) {
+    for (const v1::FrameStatus& f : job.frames())
+        if (f.state() != v1::FRAME_STATE_DONE) return &f;
+    return nullptr;
+}
+
 FarmClient::FarmClient(const std::string& address) : address_(address) {
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(64 << 20);

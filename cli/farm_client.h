@@ -31,6 +31,11 @@ std::string JobStateName(v1::JobState state);
 std::string FrameStateName(v1::FrameState state);
 bool IsFinished(v1::JobState state);
 int FramesDone(const v1::JobStatus& job);
+// The frame's stage under way and its progress: "photons 12/16", "irradiance pass 2/3
+// (40/64)", "render 130/256"; empty if the coordinator did not say.
+std::string StageProgress(const v1::FrameStatus& frame);
+// The first frame not done (the one whose stage a progress line shows), or null.
+const v1::FrameStatus* CurrentFrame(const v1::JobStatus& job);
 
 // What `Follow` may be asked to do besides showing progress.
 struct FollowOptions {

@@ -43,14 +43,22 @@ void PrintJobDetail(const v1::JobStatus& job) {
             "  finished   %s (after %s)\n", LocalTime(job.finished_unix_ms()).c_str(),
             FormatDuration((job.finished_unix_ms() - job.submitted_unix_ms()) * 1e-3).c_str());
     if (!job.error().empty()) std::printf("  error      %s\n", job.error().c_str());
-    for (const v1::FrameStatus& f : job.frames())
-        std::printf("  frame %-5d %-10s %d/%d tasks%s%s\n", f.frame(),
+    for (const v1::FrameStatus& f : job.frames()) {
+        // The stage under way, while there is one: "photons 12/16".
+        std::string stage =
+            f.state() == v1::FRAME_STATE_RENDERING || f.state() == v1::FRAME_STATE_PENDING
+                ? StageProgress(f)
+                : "";
+        std::printf("  frame %-5d %-10s %d/%d tasks%s%s%s%s\n", f.frame(),
                     FrameStateName(f.state()).c_str(), f.tasks_done(), f.tasks_total(),
-                    f.exr_path().empty() ? "" : "  ", f.exr_path().c_str());
+                    stage.empty() ? "" : ", ", stage.c_str(), f.exr_path().empty() ? "" : "  ",
+                    f.exr_path().c_str());
+    }
     if (job.failures_size() > 0) std::printf("  failures (most recent first):\n");
     for (const v1::TaskFailure& f : job.failures())
-        std::printf("    frame %d task %d attempt %d on %s: %s\n", f.frame(), f.task_index(),
-                    f.attempt(), f.worker().c_str(), f.message().c_str());
+        std::printf("    frame %d %s task %d attempt %d on %s: %s\n", f.frame(),
+                    f.stage().empty() ? "render" : f.stage().c_str(), f.task_index(), f.attempt(),
+                    f.worker().c_str(), f.message().c_str());
 }
 
 void PrintJobTable(const std::vector<v1::JobStatus>& jobs) {

@@ -42,7 +42,33 @@ void JobOptions::AddTo(CLI::App& cmd) {
             "A-B")
         ->capture_default_str();
     cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
-    cmd.add_option("--integrator", integrator, "Integrator (e.g. path, direct)");
+    cmd.add_option("--integrator", integrator,
+                   "Integrator: path, direct, photon (photon mapping with final gathering) or "
+                   "irradiance-cache (path-traced direct light, cached indirect light)")
+        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache"}));
+    cmd.add_flag("--irradiance-cache", irradiance_cache,
+                 "photon: put the final gather behind an irradiance cache");
+    cmd.add_option("--photons", photons, "photon: photons stored in the global map")
+        ->check(CLI::NonNegativeNumber);
+    cmd.add_option("--caustic-photons", caustic_photons,
+                   "photon: photons stored in the caustic map")
+        ->check(CLI::NonNegativeNumber);
+    cmd.add_option("--photon-batches", photon_batches, "photon: photon-shooting tasks")
+        ->check(CLI::Range(1, 4096));
+    cmd.add_option("--ic-accuracy", ic_accuracy,
+                   "Irradiance cache: Ward's a (smaller: more records, less error)")
+        ->check(CLI::PositiveNumber);
+    cmd.add_option("--ic-samples", ic_samples, "Irradiance cache: hemisphere rays per record")
+        ->check(CLI::Range(4, 1 << 20));
+    cmd.add_option("--ic-passes", ic_passes,
+                   "Irradiance cache: coarse-to-fine passes before rendering")
+        ->check(CLI::Range(0, 8));
+    cmd.add_flag("--no-gradients", no_gradients,
+                 "Irradiance cache: interpolate without the irradiance gradients");
+    cmd.add_option("--debug", debug,
+                   "Debug image: photons (the photon maps drawn), records (cache record "
+                   "positions), indirect (indirect light only)")
+        ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
     cmd.add_option("--sampler", sampler, "Pixel sampler: stratified or independent")
         ->check(CLI::IsMember({"stratified", "independent"}));
     cmd.add_option("--max-depth", max_depth, "Maximum path length in bounces")
@@ -71,6 +97,15 @@ v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) cons
     if (cmd.count("--integrator")) o.integrator = integrator;
     if (cmd.count("--sampler"))
         o.sampler = sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
+    if (cmd.count("--irradiance-cache")) o.irradiance_cache = true;
+    if (cmd.count("--photons")) o.photons_global = photons;
+    if (cmd.count("--caustic-photons")) o.photons_caustic = caustic_photons;
+    if (cmd.count("--photon-batches")) o.photon_batches = photon_batches;
+    if (cmd.count("--ic-accuracy")) o.ic_accuracy = ic_accuracy;
+    if (cmd.count("--ic-samples")) o.ic_samples = ic_samples;
+    if (cmd.count("--ic-passes")) o.ic_passes = ic_passes;
+    if (cmd.count("--no-gradients")) o.ic_gradients = false;
+    if (cmd.count("--debug")) o.debug = ParseDebugView(debug).value_or(DebugView::kNone);
 
     v1::JobSpec spec;
     spec.set_name(name.empty() ? DefaultJobName(scene) : name);

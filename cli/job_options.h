@@ -18,6 +18,10 @@ struct JobOptions {
     int spp = 0, max_depth = 0, tile_size = 0, width = 0, height = 0;
     uint64_t seed = 0;
     std::string integrator, sampler;
+    bool irradiance_cache = false, no_gradients = false;
+    int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
+    float ic_accuracy = 0;
+    std::string debug;
 
     void AddTo(CLI::App& cmd);
     // The job's spec, without its bundle (scene path and files): what `cmd` was given.

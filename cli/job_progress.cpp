@@ -11,9 +11,10 @@ namespace tessera {
 namespace {
 
 std::string FailureText(const v1::TaskFailure& f) {
-    return "frame " + std::to_string(f.frame()) + " task " + std::to_string(f.task_index()) +
-           " attempt " + std::to_string(f.attempt()) + " failed on " +
-           (f.worker().empty() ? std::string("?") : f.worker()) + ": " + f.message();
+    return "frame " + std::to_string(f.frame()) + (f.stage().empty() ? "" : " " + f.stage()) +
+           " task " + std::to_string(f.task_index()) + " attempt " + std::to_string(f.attempt()) +
+           " failed on " + (f.worker().empty() ? std::string("?") : f.worker()) + ": " +
+           f.message();
 }
 
 }  // namespace
@@ -39,10 +40,19 @@ std::string JobProgress::ProgressText(const v1::JobStatus& status) const {
         text += "[" + std::string(filled, '#') + std::string(kWidth - filled, '-') + "] ";
     }
     char buf[160];
-    std::snprintf(buf, sizeof buf, "%d/%d tasks %d%%, frames %d/%d, elapsed %s, ETA %s", done,
-                  status.tasks_total(), static_cast<int>(frac * 100), FramesDone(status),
-                  status.frames_size(), FormatDuration(elapsed).c_str(), eta.c_str());
-    return text + buf;
+    std::snprintf(buf, sizeof buf, "%d/%d tasks %d%%, frames %d/%d", done, status.tasks_total(),
+                  static_cast<int>(frac * 100), FramesDone(status), status.frames_size());
+    text += buf;
+    if (std::string stage = CurrentStage(status); !stage.empty()) text += ", " + stage;
+    return text + ", elapsed " + FormatDuration(elapsed) + ", ETA " + eta;
+}
+
+std::string JobProgress::CurrentStage(const v1::JobStatus& status) {
+    const v1::FrameStatus* frame = CurrentFrame(status);
+    if (!frame || IsFinished(status.state())) return "";
+    std::string stage = StageProgress(*frame);
+    if (stage.empty() || status.frames_size() == 1) return stage;
+    return "frame " + std::to_string(frame->frame()) + " " + stage;
 }
 
 void JobProgress::PrintLine(const std::string& line) {
@@ -79,11 +89,15 @@ void JobProgress::Update(const v1::JobStatus& status) {
     int total = std::max(status.tasks_total(), 1);
     int bucket = status.tasks_done() * 10 / total;
     int frames_done = FramesDone(status);
+    // The stage's name, without its count: a line when a stage starts.
+    const v1::FrameStatus* frame = CurrentFrame(status);
+    std::string stage = frame ? std::to_string(frame->frame()) + " " + frame->stage() : "";
     if (bucket != last_bucket_ || frames_done != last_frames_done_ ||
-        status.state() != last_state_) {
+        status.state() != last_state_ || stage != last_stage_) {
         last_bucket_ = bucket;
         last_frames_done_ = frames_done;
         last_state_ = status.state();
+        last_stage_ = stage;
         PrintLine(ProgressText(status));
     }
 }

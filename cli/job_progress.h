@@ -2,7 +2,8 @@
 
 #include "progress.h"
 
-// Live progress of a farm job: tasks, frames, elapsed time and ETA, as a redrawn bar on
+// Live progress of a farm job: tasks, frames, the stage under way ("photons 12/16",
+// "irradiance pass 2/3 (40/64)", "render 130/256"), elapsed time and ETA, as a redrawn bar on
 // a terminal and as plain lines otherwise. Unlike ProgressBar (one local render, counted
 // from zero) a job may be half done when we start looking at it, so the ETA is
 // measured from the progress seen since then. Failures and finished frames are printed
@@ -30,6 +31,8 @@ class JobProgress {
   private:
     void PrintLine(const std::string& line);
     std::string ProgressText(const v1::JobStatus& status) const;
+    // "photons 12/16" (prefixed by the frame when the job has several), or empty.
+    static std::string CurrentStage(const v1::JobStatus& status);
 
     bool quiet_;
     std::FILE* out_;
@@ -40,6 +43,7 @@ class JobProgress {
     int tasks_at_start_ = 0;
     int last_bucket_ = -1;  // the tenth of the job last printed as a plain line
     int last_frames_done_ = -1;
+    std::string last_stage_;  // frame and stage of the last plain line
     v1::JobState last_state_ = v1::JOB_STATE_UNSPECIFIED;
     std::set<std::string> failures_seen_;
     std::set<int> frames_done_;

@@ -18,8 +18,9 @@ std::string FormatDuration(double s) {
     return buf;
 }
 
-ProgressBar::ProgressBar(std::string label, int total, std::FILE* out)
+ProgressBar::ProgressBar(std::string label, int total, std::FILE* out, std::string unit)
     : label_(std::move(label)),
+      unit_(std::move(unit)),
       total_(std::max(total, 1)),
       out_(out),
       tty_(isatty(fileno(out)) != 0),
@@ -36,14 +37,14 @@ void ProgressBar::Update(int done) {
         int filled = static_cast<int>(frac * kWidth);
         std::string bar(filled, '#');
         bar.append(kWidth - filled, '-');
-        std::fprintf(out_, "\r%s [%s] %d/%d tiles %3d%%  elapsed %s  ETA %s   ", label_.c_str(),
-                     bar.c_str(), done, total_, percent, FormatDuration(elapsed).c_str(),
-                     eta.c_str());
+        std::fprintf(out_, "\r%s [%s] %d/%d %s %3d%%  elapsed %s  ETA %s   ", label_.c_str(),
+                     bar.c_str(), done, total_, unit_.c_str(), percent,
+                     FormatDuration(elapsed).c_str(), eta.c_str());
         std::fflush(out_);
     } else if (percent / 10 != last_percent_printed_ / 10 || done == total_) {
         last_percent_printed_ = percent;
-        std::fprintf(out_, "%s: %d/%d tiles (%d%%), elapsed %s, ETA %s\n", label_.c_str(), done,
-                     total_, percent, FormatDuration(elapsed).c_str(), eta.c_str());
+        std::fprintf(out_, "%s: %d/%d %s (%d%%), elapsed %s, ETA %s\n", label_.c_str(), done,
+                     total_, unit_.c_str(), percent, FormatDuration(elapsed).c_str(), eta.c_str());
         std::fflush(out_);
     }
 }

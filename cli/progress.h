@@ -14,12 +14,14 @@ std::string FormatDuration(double seconds);
 
 class ProgressBar {
   public:
-    ProgressBar(std::string label, int total, std::FILE* out = stderr);
+    // `unit` names what is counted: "tiles", "batches".
+    ProgressBar(std::string label, int total, std::FILE* out = stderr, std::string unit = "tiles");
     void Update(int done);
     void Finish();
 
   private:
     std::string label_;
+    std::string unit_;
     int total_;
     std::FILE* out_;
     bool tty_;

@@ -29,6 +29,10 @@ struct RenderOptions {
     int spp = 0, max_depth = 0, tile_size = 0, frame = 0, width = 0, height = 0;
     uint64_t seed = 0;
     std::string integrator;
+    bool irradiance_cache = false, no_gradients = false;
+    int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
+    float ic_accuracy = 0;
+    std::string debug;
 };
 
 std::string PreviewPath(const std::string& exr) {
@@ -48,6 +52,17 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
         o.overrides.sampler =
             o.sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
 
+    if (cmd.count("--irradiance-cache")) o.overrides.irradiance_cache = true;
+    if (cmd.count("--photons")) o.overrides.photons_global = o.photons;
+    if (cmd.count("--caustic-photons")) o.overrides.photons_caustic = o.caustic_photons;
+    if (cmd.count("--photon-batches")) o.overrides.photon_batches = o.photon_batches;
+    if (cmd.count("--ic-accuracy")) o.overrides.ic_accuracy = o.ic_accuracy;
+    if (cmd.count("--ic-samples")) o.overrides.ic_samples = o.ic_samples;
+    if (cmd.count("--ic-passes")) o.overrides.ic_passes = o.ic_passes;
+    if (cmd.count("--no-gradients")) o.overrides.ic_gradients = false;
+    if (cmd.count("--debug")) {
+        o.overrides.debug = ParseDebugView(o.debug).value_or(DebugView::kNone);
+    }
     LoadedScene loaded = LoadSceneFile(o.scene, o.overrides);
     const RenderSettings& s = loaded.settings;
     Vec2i res = loaded.scene->GetCamera().Resolution();
@@ -55,17 +70,31 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
                  s.spp, s.integrator, loaded.scene->Lights().size(), loaded.scene->NumTriangles());
 
     auto start = std::chrono::steady_clock::now();
+    // One bar per stage, named by it: "photons 12/16", "irradiance pass 2/3", "render".
     std::unique_ptr<ProgressBar> bar;
+    std::string bar_stage;
     ProgressCallback progress;
     if (!o.quiet) {
-        progress = [&](int done, int total) {
-            if (!bar) bar = std::make_unique<ProgressBar>("render", total);
+        progress = [&](const StagePlan& stage, int done, int total) {
+            if (!bar || bar_stage != stage.name) {
+                if (bar) bar->Finish();
+                bar = std::make_unique<ProgressBar>(
+                    stage.label, total, stderr,
+                    stage.task_kind == TaskKind::kTile ? "tiles" : "batches");
+                bar_stage = stage.name;
+            }
             bar->Update(done);
         };
     }
-    uint64_t rays = 0;
-    Image image = RenderFrameLocal(*loaded.scene, s, o.threads, progress, &rays);
+    LocalRenderStats stats;
+    Image image = RenderFrameLocal(*loaded.scene, s, o.threads, progress, nullptr, &stats);
+    const uint64_t rays = stats.rays;
     if (bar) bar->Finish();
+    if (stats.global_photons + stats.caustic_photons > 0)
+        spdlog::info("photon maps: {} global, {} caustic photons", stats.global_photons,
+                     stats.caustic_photons);
+    if (stats.irradiance_records > 0)
+        spdlog::info("irradiance cache: {} shared records", stats.irradiance_records);
     double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
@@ -88,8 +117,33 @@ void AddRenderCommand(CLI::App& app) {
                     "Output EXR path (a PNG preview is written beside it)")
         ->required();
     cmd->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::PositiveNumber);
-    cmd->add_option("--integrator", o->integrator, "Integrator: path or direct")
-        ->check(CLI::IsMember({"path", "direct"}));
+    cmd->add_option("--integrator", o->integrator,
+                    "Integrator: path, direct, photon (photon mapping with final gathering) or "
+                    "irradiance-cache (path-traced direct light, cached indirect light)")
+        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache"}));
+    cmd->add_flag("--irradiance-cache", o->irradiance_cache,
+                  "photon: put the final gather behind an irradiance cache");
+    cmd->add_option("--photons", o->photons, "photon: photons stored in the global map")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--caustic-photons", o->caustic_photons,
+                    "photon: photons stored in the caustic map")
+        ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--photon-batches", o->photon_batches, "photon: photon-shooting tasks")
+        ->check(CLI::Range(1, 4096));
+    cmd->add_option("--ic-accuracy", o->ic_accuracy,
+                    "Irradiance cache: Ward's a (smaller: more records, less error)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--ic-samples", o->ic_samples, "Irradiance cache: hemisphere rays per record")
+        ->check(CLI::Range(4, 1 << 20));
+    cmd->add_option("--ic-passes", o->ic_passes,
+                    "Irradiance cache: coarse-to-fine passes before rendering")
+        ->check(CLI::Range(0, 8));
+    cmd->add_flag("--no-gradients", o->no_gradients,
+                  "Irradiance cache: interpolate without the irradiance gradients");
+    cmd->add_option("--debug", o->debug,
+                    "Debug image: photons (the photon maps drawn), records (cache record "
+                    "positions), indirect (indirect light only)")
+        ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
     cmd->add_option("--sampler", o->sampler, "Pixel sampler: stratified or independent")
         ->check(CLI::IsMember({"stratified", "independent"}));
     cmd->add_option("--max-depth", o->max_depth, "Maximum path length in bounces")

@@ -21,6 +21,20 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
         else
             throw std::invalid_argument("unknown sampler '" + o.sampler() + "'");
     }
+    if (o.has_irradiance_cache()) r.irradiance_cache = o.irradiance_cache();
+    if (o.has_photons_global()) r.photons_global = o.photons_global();
+    if (o.has_photons_caustic()) r.photons_caustic = o.photons_caustic();
+    if (o.has_photon_batches()) r.photon_batches = o.photon_batches();
+    if (o.has_ic_accuracy()) r.ic_accuracy = o.ic_accuracy();
+    if (o.has_ic_samples()) r.ic_samples = o.ic_samples();
+    if (o.has_ic_passes()) r.ic_passes = o.ic_passes();
+    if (o.has_ic_gradients()) r.ic_gradients = o.ic_gradients();
+    if (o.has_debug()) {
+        r.debug = ParseDebugView(o.debug());
+        if (!r.debug)
+            throw std::invalid_argument("unknown debug view '" + o.debug() +
+                                        "' (known: none, photons, records, indirect)");
+    }
     return r;
 }
 
@@ -35,6 +49,15 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.height) o.set_height(*r.height);
     if (r.sampler)
         o.set_sampler(*r.sampler == SamplerType::kStratified ? "stratified" : "independent");
+    if (r.irradiance_cache) o.set_irradiance_cache(*r.irradiance_cache);
+    if (r.photons_global) o.set_photons_global(*r.photons_global);
+    if (r.photons_caustic) o.set_photons_caustic(*r.photons_caustic);
+    if (r.photon_batches) o.set_photon_batches(*r.photon_batches);
+    if (r.ic_accuracy) o.set_ic_accuracy(*r.ic_accuracy);
+    if (r.ic_samples) o.set_ic_samples(*r.ic_samples);
+    if (r.ic_passes) o.set_ic_passes(*r.ic_passes);
+    if (r.ic_gradients) o.set_ic_gradients(*r.ic_gradients);
+    if (r.debug) o.set_debug(DebugViewName(*r.debug));
     return o;
 }
 

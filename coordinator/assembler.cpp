@@ -1,16 +1,40 @@
 #include "assembler.h"
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include <filesystem>
+#include <functional>
 
-#include "errors.h"
 #include "plan/render_plan.h"
 
 namespace tessera {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// Reads results (task index, blob) in order, each checked against its hash, and hands
+// each to `use`; collects those that cannot be read (or that `use` rejects) and throws
+// them as one UnreadableResults.
+void ReadResults(const std::vector<std::pair<int, std::string>>& results,
+                 const std::vector<int>& completions, BlobStore& blobs, const char* what,
+                 const std::function<void(int index, std::string bytes)>& use) {
+    std::vector<std::pair<int, int>> unreadable;
+    std::string first_error;
+    for (size_t i = 0; i < results.size(); ++i) {
+        const auto& [index, hash] = results[i];
+        try {
+            if (hash.empty()) throw std::runtime_error("no result recorded");
+            use(index, blobs.ReadVerified(hash));
+        } catch (const std::exception& e) {
+            if (unreadable.empty()) first_error = fmt::format("{} {}: {}", what, index, e.what());
+            unreadable.emplace_back(index, i < completions.size() ? completions[i] : 0);
+        }
+    }
+    if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error);
+}
+
+}  // namespace
 
 std::string FramePath(const std::string& output_dir, const std::string& job_id,
                       const std::string& name, int frame, bool preview) {
@@ -22,139 +46,61 @@ std::string FramePath(const std::string& output_dir, const std::string& job_id,
 UnreadableResults::UnreadableResults(std::vector<std::pair<int, int>> tasks,
                                      const std::string& first_error)
     : std::runtime_error(
-          fmt::format("{} tile result(s) unreadable, first: {}", tasks.size(), first_error)),
+          fmt::format("{} task result(s) unreadable, first: {}", tasks.size(), first_error)),
       tasks_(std::move(tasks)) {}
+
+std::string MergeStage(const StageMergeInput& in, BlobStore& blobs) {
+    const StagePlan& stage = in.plan->stages.at(in.stage);
+    if (static_cast<int>(in.results.size()) != stage.num_tasks)
+        throw std::runtime_error(
+            fmt::format("stage {} of frame {} has {} task results, its plan {}", stage.name,
+                        in.frame, in.results.size(), stage.num_tasks));
+    std::vector<std::string> results(in.results.size());
+    ReadResults(in.results, in.completions, blobs, "task", [&](int index, std::string bytes) {
+        if (index < 0 || index >= stage.num_tasks)
+            throw std::runtime_error(fmt::format("task index {} is out of range", index));
+        results[index] = std::move(bytes);
+    });
+    std::string base;
+    if (!in.base_hash.empty()) {
+        try {
+            base = blobs.ReadVerified(in.base_hash);
+        } catch (const std::exception& e) {
+            // Artifacts are stored durably: losing one is a damaged disk, not a crash.
+            throw std::runtime_error(fmt::format("the artifact of stage {} ({}) is unreadable: {}",
+                                                 in.plan->stages.at(stage.extends).name,
+                                                 in.base_hash, e.what()));
+        }
+    }
+    return MergeStageResults(*in.plan, in.stage, base, results);
+}
 
 std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                        const std::string& output_dir, int64_t now_ms) {
-    RenderSettings settings;
-    settings.integrator = in.settings.integrator;
-    settings.spp = in.settings.spp;
-    settings.max_depth = in.settings.max_depth;
-    settings.sampler =
-        in.settings.sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
-    settings.seed = in.settings.seed;
-    settings.tile_size = in.settings.tile_size;
-    settings.frame = in.frame;
-    settings.resolution = {in.settings.width, in.settings.height};
+    const RenderSettings& settings = in.settings;
     const RenderPlan plan = MakeRenderPlan(settings.resolution, settings);
-    if (static_cast<int>(in.results.size()) != plan.TotalTasks())
-        throw std::runtime_error(fmt::format("frame {} has {} task results, its plan {}", in.frame,
-                                             in.results.size(), plan.TotalTasks()));
+    const int tiles = plan.stages.at(plan.RenderStageIndex()).num_tasks;
+    if (static_cast<int>(in.results.size()) != tiles)
+        throw std::runtime_error(fmt::format("frame {} has {} tile results, its plan {}", in.frame,
+                                             in.results.size(), tiles));
 
     FrameAssembler assembler(plan);
-    std::vector<std::pair<int, int>> unreadable;
-    std::string first_error;
-    for (size_t i = 0; i < in.results.size(); ++i) {
-        const auto& [index, hash] = in.results[i];
-        try {
-            if (hash.empty()) throw std::runtime_error("no result recorded");
-            TileResult result = DecodeTileResult(blobs.ReadVerified(hash));
-            if (result.task_index != index)
-                throw std::runtime_error(
-                    fmt::format("blob {} holds tile {}", hash, result.task_index));
-            assembler.Add(std::move(result));
-        } catch (const std::exception& e) {
-            if (unreadable.empty()) first_error = fmt::format("tile {}: {}", index, e.what());
-            unreadable.emplace_back(index, i < in.completions.size() ? in.completions[i] : 0);
-        }
-    }
-    if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error);
+    ReadResults(in.results, in.completions, blobs, "tile", [&](int index, std::string bytes) {
+        TileResult result = DecodeTileResult(bytes);
+        if (result.task_index != index)
+            throw std::runtime_error(fmt::format("the blob holds tile {}", result.task_index));
+        assembler.Add(std::move(result));
+    });
     const Image image = assembler.Assemble();
     const double seconds =
         in.started_ms > 0 ? std::max<int64_t>(0, now_ms - in.started_ms) / 1e3 : 0;
     ImageMetadata meta = FrameMetadata(settings, seconds);
-    meta["tessera:scene"] = in.settings.scene_name;
+    meta["tessera:scene"] = in.scene_name;
     const std::string exr = FramePath(output_dir, in.job_id, in.name, in.frame, false);
     fs::create_directories(fs::path(exr).parent_path());
     WriteExr(exr, image, meta);
     WritePngPreview(FramePath(output_dir, in.job_id, in.name, in.frame, true), image);
     return exr;
-}
-
-AssemblyQueue::AssemblyQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
-                             const Clock& clock)
-    : scheduler_(scheduler), blobs_(blobs), output_dir_(std::move(output_dir)), clock_(clock) {}
-
-AssemblyQueue::~AssemblyQueue() { Stop(); }
-
-void AssemblyQueue::Start() {
-    for (const auto& [job_id, frame] : scheduler_.FramesAwaitingAssembly()) {
-        spdlog::info("job {} frame {}: all tasks were done before the restart; writing it", job_id,
-                     frame);
-        Enqueue(job_id, frame);
-    }
-    thread_ = std::thread([this] { Run(); });
-}
-
-void AssemblyQueue::Enqueue(const std::string& job_id, int frame) {
-    {
-        std::lock_guard lock(mu_);
-        if (!queued_.insert({job_id, frame}).second) return;
-        queue_.emplace_back(job_id, frame);
-    }
-    cv_.notify_all();
-}
-
-void AssemblyQueue::Stop() {
-    {
-        std::lock_guard lock(mu_);
-        stop_ = true;
-    }
-    cv_.notify_all();
-    if (thread_.joinable()) thread_.join();
-}
-
-void AssemblyQueue::WaitIdle() {
-    std::unique_lock lock(mu_);
-    cv_.wait(lock, [this] { return stop_ || (queue_.empty() && !busy_); });
-}
-
-void AssemblyQueue::Run() {
-    std::unique_lock lock(mu_);
-    while (true) {
-        cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
-        if (stop_) return;
-        auto [job_id, frame] = queue_.front();
-        queue_.pop_front();
-        // Forget it before assembling: a frame that becomes ready again meanwhile (its
-        // unreadable tiles re-rendered) must be queued anew, not dropped as a duplicate.
-        queued_.erase({job_id, frame});
-        busy_ = true;
-        lock.unlock();
-        Assemble(job_id, frame);
-        lock.lock();
-        busy_ = false;
-        cv_.notify_all();
-    }
-}
-
-void AssemblyQueue::Assemble(const std::string& job_id, int frame) {
-    try {
-        FrameAssemblyInput input = scheduler_.GetAssemblyInput(job_id, frame);
-        if (!input.job_running) {
-            spdlog::info("job {} frame {}: not written, the job is no longer running", job_id,
-                         frame);
-            return;
-        }
-        std::string exr = WriteFrame(input, blobs_, output_dir_, clock_.NowMs());
-        scheduler_.FrameWritten(job_id, frame, exr);
-    } catch (const UnreadableResults& e) {
-        spdlog::warn("job {} frame {}: {}; rendering those tiles again", job_id, frame, e.what());
-        try {
-            scheduler_.RequeueDoneTasks(job_id, frame, e.Tasks());
-        } catch (const std::exception& e2) {
-            scheduler_.FailJob(job_id, fmt::format("frame {}: {}", frame, e2.what()));
-        }
-    } catch (const std::exception& e) {
-        std::string message = fmt::format("frame {} could not be assembled: {}", frame, e.what());
-        spdlog::error("job {}: {}", job_id, message);
-        try {
-            scheduler_.FailJob(job_id, message);
-        } catch (const std::exception& e2) {
-            spdlog::error("job {}: cannot record the failure: {}", job_id, e2.what());
-        }
-    }
 }
 
 }  // namespace tessera

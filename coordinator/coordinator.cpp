@@ -54,7 +54,7 @@ Coordinator::Coordinator(const CoordinatorOptions& options, const Clock& clock)
       blobs_(options.state_dir + "/blobs", options.limits.max_bundle_bytes),
       scheduler_(options.state_dir + "/tessera.db", options.scheduler, clock),
       planner_(blobs_, options.state_dir + "/jobs", options.limits),
-      assembly_(scheduler_, blobs_, EnsureDir(options.output_dir, "output"), clock),
+      frame_work_(scheduler_, blobs_, EnsureDir(options.output_dir, "output"), clock),
       dispatcher_(scheduler_),
       watches_(scheduler_) {
     scheduler_.SetListener(this);
@@ -69,7 +69,7 @@ Coordinator::~Coordinator() {
 void Coordinator::Start() {
     dispatcher_.Start();
     watches_.Start();
-    assembly_.Start();
+    frame_work_.Start();
     sweep_thread_ = std::thread([this] { SweepLoop(); });
 }
 
@@ -85,7 +85,7 @@ void Coordinator::Stop() {
     }
     sweep_cv_.notify_all();
     if (sweep_thread_.joinable()) sweep_thread_.join();
-    assembly_.Stop();
+    frame_work_.Stop();
 }
 
 void Coordinator::SweepLoop() {
@@ -155,25 +155,18 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
                                                  " was not uploaded (PutBlob before CompleteTask)");
     }
     const std::string what = inline_result ? "inline result" : "result blob " + hash;
-    TileResult decoded;
+    const std::string stored = inline_result ? std::string() : blobs_.Read(hash);
     try {
-        decoded = inline_result ? DecodeTileResult(result) : DecodeTileResult(blobs_.Read(hash));
-    } catch (const std::runtime_error& e) {
-        if (auto* ce = dynamic_cast<const CoordinatorError*>(&e)) throw *ce;
-        ThrowError(ErrorCode::kInvalidArgument, what + " is not a tile result: " + e.what());
-    }
-    const PixelBounds& t = check.tile;
-    const PixelBounds& g = decoded.region;
-    const bool covers = g.lo.x <= t.lo.x && g.lo.y <= t.lo.y && g.hi.x >= t.hi.x &&
-                        g.hi.y >= t.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
-                        g.hi.x <= check.resolution.x && g.hi.y <= check.resolution.y;
-    if (decoded.task_index != check.task_index || !covers)
+        CheckTaskResult(*check.plan, check.stage, check.task_index,
+                        inline_result ? result : stored);
+    } catch (const std::exception& e) {
         ThrowError(ErrorCode::kInvalidArgument,
-                   fmt::format("{} holds tile {} [{},{})-[{},{}), not task {}'s tile {} of {} "
-                               "frame {}",
-                               what, decoded.task_index, g.lo.x, g.lo.y, g.hi.x, g.hi.y, task_id,
-                               check.task_index, check.job_id, check.frame));
-    // Not synced: if a crash loses it, assembly notices and the tile is rendered again.
+                   fmt::format("{} is not a result of task {} ({} task {} of {} frame {}): {}",
+                               what, task_id, check.plan->stages[check.stage].name,
+                               check.task_index, check.job_id, check.frame, e.what()));
+    }
+    // Not synced: if a crash loses it, the stage's merge or the frame's assembly notices
+    // and the task runs again.
     if (inline_result) blobs_.Put(hash, result, Durability::kRecomputable);
     scheduler_.Complete(worker_id, task_id, lease_id, hash);
 }

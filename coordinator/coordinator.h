@@ -6,7 +6,7 @@
 //
 // State directory layout:
 //   <state>/tessera.db     SQLite (WAL): jobs, frames, stages, tasks, leases, workers
-//   <state>/blobs/ab/...   content-addressed blobs (scene files, tile results)
+//   <state>/blobs/ab/...   content-addressed blobs (scene files, task results, artifacts)
 //   <state>/jobs/<job>/bundle/   each job's scene bundle, rebuilt from blobs
 //   <state>/LOCK           held (flock) while a coordinator uses the directory
 // Frames are written to <output>/<job_id>/<name>.<frame:04>.exr (+ .png preview).
@@ -20,6 +20,7 @@
 #include "assembler.h"
 #include "blob_store.h"
 #include "clock.h"
+#include "frame_work_queue.h"
 #include "job_planner.h"
 #include "lease_dispatcher.h"
 #include "scheduler.h"
@@ -43,7 +44,7 @@ class Coordinator final : public SchedulerListener {
     ~Coordinator() override;
 
     // Starts the background threads (lease sweep, long-poll dispatcher, watch fan-out,
-    // frame assembly, which first writes frames left over from a crash).
+    // stage merges and frame assembly, which first finish what a crash left undone).
     void Start();
     // Stops taking new long polls and watches and answers the pending ones: call before
     // shutting the server down so that it has no reason to wait.
@@ -74,8 +75,9 @@ class Coordinator final : public SchedulerListener {
     // The result comes either inline (`result` non-empty; `result_hash`, if given, must
     // be its SHA-256: INVALID_ARGUMENT otherwise; RESOURCE_EXHAUSTED over
     // kMaxInlineResultBytes), stored as a Durability::kRecomputable blob, or as a blob
-    // uploaded first (NOT_FOUND if it is missing). Either way it must decode as this
-    // task's tile (INVALID_ARGUMENT). The lease is checked first: a stale one is
+    // uploaded first (NOT_FOUND if it is missing). Either way it must be a well-formed
+    // result of this task (CheckTaskResult: its tile, photon batch or records;
+    // INVALID_ARGUMENT otherwise). The lease is checked first: a stale one is
     // FAILED_PRECONDITION and nothing is stored.
     void CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
                       const std::string& result_hash, const std::string& result = {});
@@ -88,7 +90,7 @@ class Coordinator final : public SchedulerListener {
     BlobStore& Blobs() { return blobs_; }
 
     Scheduler& GetScheduler() { return scheduler_; }
-    AssemblyQueue& Assembly() { return assembly_; }
+    FrameWorkQueue& FrameWork() { return frame_work_; }
     LeaseDispatcher& Dispatcher() { return dispatcher_; }
 
     // SchedulerListener
@@ -96,8 +98,11 @@ class Coordinator final : public SchedulerListener {
     void OnJobChanged(const std::string& job_id, const std::string& message) override {
         watches_.OnJobChanged(job_id, message);
     }
+    void OnStageReady(const std::string& job_id, int frame, int stage) override {
+        frame_work_.EnqueueMerge(job_id, frame, stage);
+    }
     void OnFrameReady(const std::string& job_id, int frame) override {
-        assembly_.Enqueue(job_id, frame);
+        frame_work_.EnqueueAssembly(job_id, frame);
     }
 
   private:
@@ -119,7 +124,7 @@ class Coordinator final : public SchedulerListener {
     BlobStore blobs_;
     Scheduler scheduler_;
     JobPlanner planner_;
-    AssemblyQueue assembly_;
+    FrameWorkQueue frame_work_;
     LeaseDispatcher dispatcher_;
     WatchHub watches_;
 

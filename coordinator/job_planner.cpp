@@ -129,6 +129,14 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
         Invalid(fmt::format("tile_size {} is below 1", o.tile_size()));
     if (o.has_max_depth() && o.max_depth() < 0)
         Invalid(fmt::format("max_depth {} is negative", o.max_depth()));
+    if (o.has_photons_global() && o.photons_global() < 0)
+        Invalid(fmt::format("photons {} is negative", o.photons_global()));
+    if (o.has_photons_caustic() && o.photons_caustic() < 0)
+        Invalid(fmt::format("caustic photons {} is negative", o.photons_caustic()));
+    if (o.has_photon_batches() && o.photon_batches() < 1)
+        Invalid(fmt::format("photon_batches {} is below 1", o.photon_batches()));
+    if (o.has_ic_passes() && (o.ic_passes() < 0 || o.ic_passes() > 8))
+        Invalid(fmt::format("ic_passes {} is not between 0 and 8", o.ic_passes()));
     CheckSettings(o.has_width() ? o.width() : 1, o.has_height() ? o.height() : 1,
                   o.has_spp() ? o.spp() : 1, 0);
 }
@@ -196,17 +204,23 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     } catch (const std::invalid_argument& e) {
         Invalid(e.what());
     }
-    // The plan's shape is the same for every frame (the tiles of the resolution).
-    RenderSettings frame_settings = s;
-    frame_settings.frame = spec.frame_start();
-    const RenderPlan plan = MakeRenderPlan(res, frame_settings);
+    // The plan's stages are the same for every frame: they depend on the settings only.
+    RenderSettings settings = s;
+    settings.resolution = res;
+    RenderPlan plan;
+    try {
+        plan = MakeRenderPlan(res, settings);
+    } catch (const std::invalid_argument& e) {
+        Invalid(e.what());
+    }
+    CheckSettings(res.x, res.y, s.spp, int64_t(plan.TotalTasks()) * frames);
 
     NewJob& job = planned.job;
     job.name = spec.name();
     job.priority = spec.priority();
     job.frame_start = spec.frame_start();
     job.frame_end = spec.frame_end();
-    job.tasks_per_frame = plan.TotalTasks();
+    job.render_settings = EncodeRenderSettings(settings);
     job.settings.width = res.x;
     job.settings.height = res.y;
     job.settings.spp = s.spp;

@@ -3,7 +3,9 @@
 // Turns a submitted JobSpec into a NewJob for the scheduler: validates the spec against
 // the coordinator's limits, rebuilds the scene bundle from blobs under
 // <jobs>/<job>/bundle/, loads the scene (which validates it and resolves its settings)
-// and plans each frame: one "render" task per tile.
+// and plans its frames (the render plan's stages: photon batches, irradiance passes,
+// render tiles). The resolved settings are kept with the job (EncodeRenderSettings),
+// so that nothing after submission has to load the scene again.
 
 #include <cstdint>
 #include <string>

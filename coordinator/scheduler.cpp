@@ -78,6 +78,9 @@ void Scheduler::Emit(const Events& events) {
             case Event::kJob:
                 listener_->OnJobChanged(e.job_id, e.message);
                 break;
+            case Event::kStageReady:
+                listener_->OnStageReady(e.job_id, e.frame, e.stage);
+                break;
             case Event::kFrameReady:
                 listener_->OnFrameReady(e.job_id, e.frame);
                 break;
@@ -110,9 +113,9 @@ JobRow Scheduler::LoadJob(int64_t job_id) {
     return std::move(*job);
 }
 
-const Scheduler::JobInfo& Scheduler::Info(int64_t job_id) {
+std::shared_ptr<const Scheduler::JobInfo> Scheduler::Info(int64_t job_id) {
     auto it = jobs_.find(job_id);
-    if (it != jobs_.end()) return *it->second;
+    if (it != jobs_.end()) return it->second;
     JobRow row = LoadJob(job_id);
     auto info = std::make_shared<JobInfo>();
     auto spec = std::make_shared<v1::JobSpec>();
@@ -120,11 +123,18 @@ const Scheduler::JobInfo& Scheduler::Info(int64_t job_id) {
         ThrowError(ErrorCode::kInternal, "stored spec of " + FormatJobId(job_id) + " is corrupt");
     info->spec = std::move(spec);
     info->name = row.name;
-    info->resolution = {row.settings.width, row.settings.height};
-    info->tiles = MakeTiles(info->resolution, row.settings.tile_size);
+    try {
+        info->settings = DecodeRenderSettings(row.render_settings);
+        info->plan = std::make_shared<const RenderPlan>(
+            MakeRenderPlan(info->settings.resolution, info->settings));
+    } catch (const std::exception& e) {
+        ThrowError(ErrorCode::kInternal, fmt::format("stored settings of {} cannot be planned: {}",
+                                                     FormatJobId(job_id), e.what()));
+    }
     info->first_task_id = row.first_task_id;
     info->tasks_total = row.tasks_total;
-    return *jobs_.emplace(job_id, std::move(info)).first->second;
+    jobs_.emplace(job_id, info);
+    return info;
 }
 
 WorkerRegistration Scheduler::RegisterWorker(const std::string& name, int threads) {
@@ -160,8 +170,9 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         std::optional<TaskRow> task = store_.NextPendingTask();
         if (!task) return std::nullopt;
         const int64_t now = clock_.NowMs();
-        const JobInfo& info = Info(task->job_id);
+        const std::shared_ptr<const JobInfo> info = Info(task->job_id);
         const std::string job_id = FormatJobId(task->job_id);
+        const std::vector<TaskInputRef> inputs = Inputs(*info, *task);
         SqliteTransaction txn(store_.Db());
         const int job_state = store_.JobState(task->job_id).value_or(0);
         const int64_t lease_id = last_lease_id_ + 1;
@@ -182,12 +193,14 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         out->stage = task->stage;
         out->task_index = task->task_index;
         out->attempt = task->attempts + 1;
-        out->spec = info.spec;
+        out->spec = info->spec;
         out->deadline_ms = now + options_.lease_ms;
-        spdlog::info("lease {}: task {} ({} frame {} tile {}, attempt {}) to worker '{}'", lease_id,
-                     task->id, job_id, task->frame, task->task_index, out->attempt, worker.name);
+        out->inputs = inputs;
+        spdlog::info("lease {}: task {} ({} frame {} {} {}, attempt {}) to worker '{}'", lease_id,
+                     task->id, job_id, task->frame, task->stage, task->task_index, out->attempt,
+                     worker.name);
         if (job_state == v1::JOB_STATE_QUEUED) {
-            spdlog::info("job {} '{}' is running", job_id, info.name);
+            spdlog::info("job {} '{}' is running", job_id, info->name);
             events.push_back({Event::kJob, job_id, "job running"});
         }
         if (frame_started)
@@ -240,15 +253,35 @@ const Scheduler::Lease& Scheduler::CurrentLease(int64_t task_id, int64_t lease_i
                            task_id, why));
 }
 
+std::vector<TaskInputRef> Scheduler::Inputs(const JobInfo& info, const TaskRow& task) {
+    const std::vector<StagePlan>& stages = info.plan->stages;
+    if (task.stage_index < 0 || task.stage_index >= static_cast<int>(stages.size()))
+        ThrowError(ErrorCode::kInternal, fmt::format("task {} has stage {}, its plan {} stages",
+                                                     task.id, task.stage_index, stages.size()));
+    const std::vector<int>& reads = stages[task.stage_index].reads;
+    std::vector<TaskInputRef> inputs;
+    if (reads.empty()) return inputs;
+    const std::vector<StageRow> rows = store_.GetFrameStages(task.job_id, task.frame);
+    for (int r : reads) {
+        // Its tasks were released by the merge of what they read: never without it.
+        if (r >= static_cast<int>(rows.size()) || !rows[r].merged)
+            ThrowError(ErrorCode::kInternal,
+                       fmt::format("task {} ({} of frame {}) is pending, but stage {} it reads "
+                                   "is not merged",
+                                   task.id, task.stage, task.frame, stages[r].name));
+        inputs.push_back({rows[r].name, rows[r].artifact_hash, rows[r].artifact_size});
+    }
+    return inputs;
+}
+
 LeaseCheck Scheduler::CheckLease(int64_t task_id, int64_t lease_id) {
     std::lock_guard lock(mu_);
     TaskRow task;
     const Lease& lease = CurrentLease(task_id, lease_id, &task);
-    const JobInfo& info = Info(lease.job_id);
-    if (task.task_index < 0 || task.task_index >= static_cast<int>(info.tiles.size()))
-        ThrowError(ErrorCode::kInternal, fmt::format("task {} has no tile", task_id));
-    return {FormatJobId(task.job_id), task.frame, task.task_index, info.tiles[task.task_index],
-            info.resolution};
+    const std::shared_ptr<const JobInfo> info = Info(lease.job_id);
+    if (task.stage_index < 0 || task.stage_index >= static_cast<int>(info->plan->stages.size()))
+        ThrowError(ErrorCode::kInternal, fmt::format("task {} has no stage", task_id));
+    return {FormatJobId(task.job_id), task.frame, task.stage_index, task.task_index, info->plan};
 }
 
 void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
@@ -261,24 +294,35 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         TaskRow task;
         CurrentLease(task_id, lease_id, &task);
         const std::string job_id = FormatJobId(task.job_id);
+        const std::shared_ptr<const JobInfo> info = Info(task.job_id);
+        if (task.stage_index < 0 || task.stage_index >= static_cast<int>(info->plan->stages.size()))
+            ThrowError(ErrorCode::kInternal, fmt::format("task {} has no stage", task_id));
+        const StagePlan& stage = info->plan->stages[task.stage_index];
         SqliteTransaction txn(store_.Db());
         if (!store_.CompleteTask(task_id, lease_id, result_hash))
             ThrowError(ErrorCode::kInternal,
                        fmt::format("task {} changed under its lease", task_id));
         store_.CountTaskDone(task.job_id);
-        const int frame_done = store_.CountFrameTaskDone(task.job_id, task.frame);
+        store_.CountFrameTaskDone(task.job_id, task.frame);
+        const int stage_done = store_.CountStageTaskDone(task.job_id, task.frame, task.stage_index);
         txn.Commit();
         leases_.erase(task_id);
-        const int frame_total = static_cast<int>(Info(task.job_id).tiles.size());
-        spdlog::info("lease {}: task {} ({} frame {} tile {}) completed by worker '{}' ({}/{})",
-                     lease_id, task_id, job_id, task.frame, task.task_index, worker.name,
-                     frame_done, frame_total);
-        events.push_back({Event::kJob, job_id,
-                          fmt::format("task {} of frame {} done", task.task_index, task.frame)});
-        if (frame_done == frame_total) {
-            spdlog::info("job {} frame {}: all {} tasks done; assembling", job_id, task.frame,
-                         frame_total);
-            events.push_back({Event::kFrameReady, job_id, "", task.frame});
+        spdlog::info("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
+                     lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
+                     worker.name, stage_done, stage.num_tasks);
+        events.push_back(
+            {Event::kJob, job_id,
+             fmt::format("{} task {} of frame {} done", stage.name, task.task_index, task.frame)});
+        if (stage_done == stage.num_tasks) {
+            if (stage.produces_artifact) {
+                spdlog::info("job {} frame {}: all {} tasks of {} done; merging", job_id,
+                             task.frame, stage.num_tasks, stage.name);
+                events.push_back({Event::kStageReady, job_id, "", task.frame, task.stage_index});
+            } else {
+                spdlog::info("job {} frame {}: all {} tasks done; assembling", job_id, task.frame,
+                             info->plan->TotalTasks());
+                events.push_back({Event::kFrameReady, job_id, "", task.frame});
+            }
         }
     }
     Emit(events);
@@ -298,22 +342,23 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
         const int failures = task.failures + 1;
         SqliteTransaction txn(store_.Db());
         store_.RequeueTask(task_id, lease_id, true);
-        store_.InsertFailure(task.job_id,
-                             {task.frame, task.task_index, task.attempts, worker.name, text},
-                             clock_.NowMs());
+        store_.InsertFailure(
+            task.job_id,
+            {task.frame, task.task_index, task.attempts, worker.name, text, task.stage},
+            clock_.NowMs());
         leases_.erase(task_id);
         spdlog::warn(
-            "lease {}: task {} ({} frame {} tile {}) failed on worker '{}' (failure {} of "
+            "lease {}: task {} ({} frame {} {} {}) failed on worker '{}' (failure {} of "
             "{}): {}",
-            lease_id, task_id, job_id, task.frame, task.task_index, worker.name, failures,
-            options_.max_attempts, text);
+            lease_id, task_id, job_id, task.frame, task.stage, task.task_index, worker.name,
+            failures, options_.max_attempts, text);
         events.push_back({Event::kJob, job_id,
-                          fmt::format("task {} of frame {} failed on {}: {}", task.task_index,
-                                      task.frame, worker.name, text)});
+                          fmt::format("{} task {} of frame {} failed on {}: {}", task.stage,
+                                      task.task_index, task.frame, worker.name, text)});
         if (failures >= options_.max_attempts) {
             std::string error =
-                fmt::format("task {} of frame {} failed {} times; last error on worker {}: {}",
-                            task.task_index, task.frame, failures, worker.name, text);
+                fmt::format("{} task {} of frame {} failed {} times; last error on worker {}: {}",
+                            task.stage, task.task_index, task.frame, failures, worker.name, text);
             EndJob(task.job_id, v1::JOB_STATE_FAILED, error);
             events.push_back({Event::kJob, job_id, "job failed: " + error});
         } else {
@@ -380,9 +425,9 @@ int Scheduler::Sweep() {
 }
 
 void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
-    const JobInfo& info = Info(job_id);
+    const JobRow job = LoadJob(job_id);
     store_.SetJobState(job_id, state, error, clock_.NowMs());
-    store_.DropTasks(info.first_task_id, info.first_task_id + info.tasks_total - 1);
+    store_.DropTasks(job.first_task_id, job.first_task_id + job.tasks_total - 1);
     if (state == v1::JOB_STATE_FAILED) store_.FailOpenFrames(job_id);
     for (auto it = leases_.begin(); it != leases_.end();) {
         if (it->second.job_id == job_id) {
@@ -394,12 +439,24 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
         }
     }
     spdlog::log(state == v1::JOB_STATE_FAILED ? spdlog::level::err : spdlog::level::info,
-                "job {} '{}' {}{}", FormatJobId(job_id), info.name,
+                "job {} '{}' {}{}", FormatJobId(job_id), job.name,
                 state == v1::JOB_STATE_FAILED ? "failed: " : "cancelled", error);
-    jobs_.erase(job_id);  // `info` is gone from here on
+    jobs_.erase(job_id);
 }
 
-std::string Scheduler::AddJob(const NewJob& job) {
+std::string Scheduler::AddJob(NewJob job) {
+    RenderPlan plan;
+    try {
+        const RenderSettings settings = DecodeRenderSettings(job.render_settings);
+        plan = MakeRenderPlan(settings.resolution, settings);
+    } catch (const std::invalid_argument& e) {
+        ThrowError(ErrorCode::kInvalidArgument,
+                   std::string("the job cannot be planned: ") + e.what());
+    }
+    job.stages.clear();
+    for (const StagePlan& s : plan.stages)
+        job.stages.push_back({s.name, s.label.empty() ? s.name : s.label, s.num_tasks,
+                              s.produces_artifact, !s.reads.empty()});
     std::string job_id;
     {
         std::lock_guard lock(mu_);
@@ -408,10 +465,15 @@ std::string Scheduler::AddJob(const NewJob& job) {
         txn.Commit();
         job_id = FormatJobId(id);
         const int frames = job.frame_end - job.frame_start + 1;
-        spdlog::info("job {} '{}' submitted: frames {}..{}, {}x{}, {} spp, {} tasks, priority {}",
-                     job_id, job.name, job.frame_start, job.frame_end, job.settings.width,
-                     job.settings.height, job.settings.spp, int64_t(frames) * job.tasks_per_frame,
-                     job.priority);
+        std::string stages;
+        for (const NewStage& s : job.stages)
+            stages += fmt::format("{}{} {}", stages.empty() ? "" : ", ", s.name, s.num_tasks);
+        spdlog::info(
+            "job {} '{}' submitted: frames {}..{}, {}x{}, {} spp, {} {} tasks ({} per frame: "
+            "{}), priority {}",
+            job_id, job.name, job.frame_start, job.frame_end, job.settings.width,
+            job.settings.height, job.settings.spp, job.settings.integrator,
+            int64_t(frames) * job.TasksPerFrame(), job.TasksPerFrame(), stages, job.priority);
     }
     Emit({{Event::kJob, job_id, "job queued"}, {Event::kWork, job_id, ""}});
     return job_id;
@@ -426,6 +488,8 @@ v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
     s.set_priority(job.priority);
     s.set_tasks_done(job.tasks_done);
     s.set_tasks_total(job.tasks_total);
+    const std::vector<StageRow> stages = store_.GetStages(job_id);
+    size_t next_stage = 0;
     for (const FrameRow& f : store_.GetFrames(job_id)) {
         v1::FrameStatus* fs = s.add_frames();
         fs->set_frame(f.frame);
@@ -433,6 +497,16 @@ v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
         fs->set_tasks_done(f.tasks_done);
         fs->set_tasks_total(f.tasks_total);
         fs->set_exr_path(f.exr_path);
+        // The stage under way: the first not finished, else the last.
+        const StageRow* current = nullptr;
+        for (; next_stage < stages.size() && stages[next_stage].frame == f.frame; ++next_stage)
+            if (!current || current->Finished()) current = &stages[next_stage];
+        if (current) {
+            fs->set_stage(current->name);
+            fs->set_stage_label(current->label);
+            fs->set_stage_done(current->tasks_done);
+            fs->set_stage_total(current->num_tasks);
+        }
     }
     s.set_error(job.error);
     for (const FailureRow& f : store_.RecentFailures(job_id, kMaxFailuresShown)) {
@@ -442,6 +516,7 @@ v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
         tf->set_worker(f.worker);
         tf->set_message(f.message);
         tf->set_attempt(f.attempt);
+        tf->set_stage(f.stage);
     }
     s.set_submitted_unix_ms(job.submitted_ms);
     s.set_finished_unix_ms(job.finished_ms);
@@ -492,10 +567,99 @@ FrameAssemblyInput Scheduler::GetAssemblyInput(const std::string& job_id, int fr
     in.name = job.name;
     in.frame = frame;
     in.job_running = job.state == v1::JOB_STATE_RUNNING;
-    in.settings = job.settings;
+    if (!in.job_running) return in;
+    const std::shared_ptr<const JobInfo> info = Info(id);
+    in.settings = info->settings;
+    in.settings.frame = frame;
+    in.scene_name = job.settings.scene_name;
     in.started_ms = row->started_ms;
-    in.results = store_.FrameResults(*row, &in.completions);
+    std::optional<StageRow> render = store_.GetStage(id, frame, info->plan->RenderStageIndex());
+    if (!render)
+        ThrowError(ErrorCode::kInternal,
+                   fmt::format("{} frame {} has no render stage", job_id, frame));
+    in.render_stage = render->index;
+    in.results = store_.StageResults(*render, &in.completions);
     return in;
+}
+
+StageMergeInput Scheduler::GetMergeInput(const std::string& job_id, int frame, int stage) {
+    const int64_t id = ParseJobId(job_id);
+    std::lock_guard lock(mu_);
+    JobRow job = LoadJob(id);
+    std::optional<StageRow> row = store_.GetStage(id, frame, stage);
+    if (!row)
+        ThrowError(ErrorCode::kNotFound,
+                   fmt::format("{} frame {} has no stage {}", job_id, frame, stage));
+    StageMergeInput in;
+    in.job_id = job_id;
+    in.frame = frame;
+    in.stage = stage;
+    in.job_running = job.state == v1::JOB_STATE_RUNNING;
+    in.merged = row->merged;
+    in.ready = row->tasks_done == row->num_tasks;
+    if (!in.job_running || in.merged || !in.ready) return in;
+    const std::shared_ptr<const JobInfo> info = Info(id);
+    in.plan = info->plan;
+    if (stage >= static_cast<int>(in.plan->stages.size()) ||
+        !in.plan->stages[stage].produces_artifact)
+        ThrowError(ErrorCode::kInternal,
+                   fmt::format("stage {} of {} produces no artifact", row->name, job_id));
+    if (const int base = in.plan->stages[stage].extends; base >= 0) {
+        std::optional<StageRow> extended = store_.GetStage(id, frame, base);
+        if (!extended || !extended->merged)
+            ThrowError(ErrorCode::kInternal,
+                       fmt::format("{} frame {}: stage {} extends {}, which is not merged", job_id,
+                                   frame, row->name, in.plan->stages[base].name));
+        in.base_hash = extended->artifact_hash;
+    }
+    in.results = store_.StageResults(*row, &in.completions);
+    return in;
+}
+
+void Scheduler::StageMerged(const std::string& job_id, int frame, int stage,
+                            const std::string& hash, uint64_t size) {
+    const int64_t id = ParseJobId(job_id);
+    Events events;
+    {
+        std::lock_guard lock(mu_);
+        JobRow job = LoadJob(id);
+        if (job.state != v1::JOB_STATE_RUNNING) return;
+        const std::shared_ptr<const JobInfo> info = Info(id);
+        const std::vector<StagePlan>& plan = info->plan->stages;
+        if (stage < 0 || stage >= static_cast<int>(plan.size()))
+            ThrowError(ErrorCode::kInternal, fmt::format("{} has no stage {}", job_id, stage));
+        SqliteTransaction txn(store_.Db());
+        if (!store_.SetStageMerged(id, frame, stage, hash, size)) return;  // merged before
+        // Release every later stage that reads this one and whose inputs are now all in.
+        const std::vector<StageRow> rows = store_.GetFrameStages(id, frame);
+        std::string released;
+        for (size_t t = stage + 1; t < plan.size() && t < rows.size(); ++t) {
+            const std::vector<int>& reads = plan[t].reads;
+            if (std::find(reads.begin(), reads.end(), stage) == reads.end()) continue;
+            bool ready = true;
+            for (int r : reads) ready &= r < static_cast<int>(rows.size()) && rows[r].merged;
+            if (!ready) continue;
+            store_.ReleaseTasks(rows[t].first_task_id,
+                                rows[t].first_task_id + rows[t].num_tasks - 1);
+            released += (released.empty() ? "" : ", ") + plan[t].name;
+        }
+        txn.Commit();
+        spdlog::info("job {} frame {}: {} merged into {} ({} bytes){}{}", job_id, frame,
+                     plan[stage].name, hash.substr(0, 12), size,
+                     released.empty() ? "" : "; now leasing ", released);
+        events.push_back(
+            {Event::kJob, job_id, fmt::format("frame {}: {} merged", frame, plan[stage].label)});
+        if (!released.empty()) events.push_back({Event::kWork, job_id, ""});
+    }
+    Emit(events);
+}
+
+std::vector<std::tuple<std::string, int, int>> Scheduler::StagesAwaitingMerge() {
+    std::lock_guard lock(mu_);
+    std::vector<std::tuple<std::string, int, int>> out;
+    for (const auto& [job, frame, stage] : store_.StagesAwaitingMerge())
+        out.emplace_back(FormatJobId(job), frame, stage);
+    return out;
 }
 
 void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::string& exr_path) {
@@ -521,24 +685,29 @@ void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::st
     Emit(events);
 }
 
-void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame,
+void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame, int stage,
                                  const std::vector<std::pair<int, int>>& tasks) {
     const int64_t id = ParseJobId(job_id);
+    std::string name;
     {
         std::lock_guard lock(mu_);
-        std::optional<FrameRow> row = store_.GetFrame(id, frame);
+        std::optional<StageRow> row = store_.GetStage(id, frame, stage);
         if (!row)
-            ThrowError(ErrorCode::kNotFound, fmt::format("{} has no frame {}", job_id, frame));
+            ThrowError(ErrorCode::kNotFound,
+                       fmt::format("{} frame {} has no stage {}", job_id, frame, stage));
+        name = row->name;
         SqliteTransaction txn(store_.Db());
         int requeued = 0;
         for (const auto& [index, completions] : tasks)
-            if (index >= 0 && index < row->tasks_total)
+            if (index >= 0 && index < row->num_tasks)
                 requeued += store_.RequeueDoneTask(row->first_task_id + index, completions) ? 1 : 0;
-        store_.UncountTasksDone(id, frame, requeued);
+        store_.UncountTasksDone(id, frame, stage, requeued);
         txn.Commit();
-        spdlog::warn("job {} frame {}: {} finished task(s) re-queued", job_id, frame, requeued);
+        spdlog::warn("job {} frame {}: {} finished {} task(s) re-queued", job_id, frame, requeued,
+                     name);
     }
-    Emit({{Event::kJob, job_id, fmt::format("frame {}: unreadable tile results re-queued", frame)},
+    Emit({{Event::kJob, job_id,
+           fmt::format("frame {}: unreadable {} results re-queued", frame, name)},
           {Event::kWork, job_id, ""}});
 }
 

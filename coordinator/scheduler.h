@@ -5,8 +5,14 @@
 // cancellation are tested without sockets or real time.
 //
 // - LeaseTask-style calls (TryLease) hand out the next pending task of the
-//   highest-priority job (priority desc, then submission, frame, task index) under a
-//   fresh, monotonic lease id with a deadline of now + lease_ms.
+//   highest-priority job (priority desc, then submission, frame, stage, task index)
+//   under a fresh, monotonic lease id with a deadline of now + lease_ms.
+// - A frame's tasks are those of every stage of its render plan (MakeRenderPlan of the
+//   job's stored settings). A stage's tasks are leased only once the artifacts of the
+//   stages it reads are merged: they wait until the transaction that records the merge
+//   (StageMerged) releases them. When the last task of an artifact stage completes, the
+//   listener hears OnStageReady (merge it); when the last of the render stage does,
+//   OnFrameReady (assemble it).
 // - Only the current lease may complete or fail a task (fencing); anything else is
 //   FAILED_PRECONDITION "stale lease ...".
 // - Heartbeats extend a lease; Sweep() re-queues leases past their deadline. Expiry is
@@ -25,11 +31,13 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 #include <vector>
 
 #include "clock.h"
 #include "film/film.h"
+#include "plan/render_plan.h"
 #include "store.h"
 #include "tessera/v1/tessera.pb.h"
 
@@ -46,6 +54,13 @@ struct WorkerRegistration {
     int lease_duration_ms = 0;
 };
 
+// A merged artifact that a task reads.
+struct TaskInputRef {
+    std::string stage;  // the stage that produced it
+    std::string hash;
+    uint64_t size = 0;
+};
+
 struct LeasedTask {
     int64_t task_id = 0;
     int64_t lease_id = 0;
@@ -56,6 +71,7 @@ struct LeasedTask {
     int attempt = 0;  // 1 for the first lease of the task
     std::shared_ptr<const v1::JobSpec> spec;
     int64_t deadline_ms = 0;
+    std::vector<TaskInputRef> inputs;  // the artifacts of the stages it reads
 };
 
 struct HeartbeatReply {
@@ -67,9 +83,9 @@ struct HeartbeatReply {
 struct LeaseCheck {
     std::string job_id;
     int frame = 0;
+    int stage = 0;  // index in the plan
     int task_index = 0;
-    PixelBounds tile;
-    Vec2i resolution;
+    std::shared_ptr<const RenderPlan> plan;  // the job's (the same stages for every frame)
 };
 
 struct FrameAssemblyInput {
@@ -77,10 +93,27 @@ struct FrameAssemblyInput {
     std::string name;
     int frame = 0;
     bool job_running = false;
-    JobSettings settings;
+    RenderSettings settings;  // the job's, for this frame
+    std::string scene_name;
     int64_t started_ms = 0;
-    std::vector<std::pair<int, std::string>> results;  // (task index, blob), task order
+    int render_stage = 0;  // its index in the plan
+    // The render stage's results: (task index, blob), in task order.
+    std::vector<std::pair<int, std::string>> results;
     std::vector<int> completions;  // each task's completion count when `results` was read
+};
+
+// What merging an artifact stage of a frame needs.
+struct StageMergeInput {
+    std::string job_id;
+    int frame = 0;
+    int stage = 0;
+    bool job_running = false;
+    bool ready = false;   // all its tasks are done
+    bool merged = false;  // already merged (nothing to do)
+    std::shared_ptr<const RenderPlan> plan;
+    std::string base_hash;  // the artifact of the stage it extends; empty if none
+    std::vector<std::pair<int, std::string>> results;  // (task index, blob), task order
+    std::vector<int> completions;
 };
 
 class SchedulerListener {
@@ -90,6 +123,8 @@ class SchedulerListener {
     virtual void OnWorkAvailable() {}
     // Anything in the job's status changed; `message` says what.
     virtual void OnJobChanged(const std::string& /*job_id*/, const std::string& /*message*/) {}
+    // Every task of an artifact stage of the frame is done: it can be merged.
+    virtual void OnStageReady(const std::string& /*job_id*/, int /*frame*/, int /*stage*/) {}
     // Every task of the frame is done: it can be assembled.
     virtual void OnFrameReady(const std::string& /*job_id*/, int /*frame*/) {}
 };
@@ -129,7 +164,9 @@ class Scheduler {
     void Checkpoint() { store_.Checkpoint(); }
 
     // --- jobs
-    std::string AddJob(const NewJob& job);
+    // Plans the job's frames from job.render_settings (job.stages is filled in here);
+    // INVALID_ARGUMENT if no plan can be made of them.
+    std::string AddJob(NewJob job);
     // NOT_FOUND for an unknown job.
     v1::JobStatus GetJob(const std::string& job_id);
     std::vector<v1::JobStatus> ListJobs();
@@ -137,14 +174,25 @@ class Scheduler {
     // as it is. Returns the status after.
     v1::JobStatus Cancel(const std::string& job_id);
 
+    // --- merges
+    StageMergeInput GetMergeInput(const std::string& job_id, int frame, int stage);
+    // Records the merged artifact (stored durably first) and releases the stages that
+    // can now run, in one transaction. No-op if the stage is merged already or the job
+    // is no longer running.
+    void StageMerged(const std::string& job_id, int frame, int stage, const std::string& hash,
+                     uint64_t size);
+    // Artifact stages whose tasks are all done but that were never merged (a crash came
+    // first): (job id, frame, stage).
+    std::vector<std::tuple<std::string, int, int>> StagesAwaitingMerge();
+
     // --- assembly
     FrameAssemblyInput GetAssemblyInput(const std::string& job_id, int frame);
     void FrameWritten(const std::string& job_id, int frame, const std::string& exr_path);
-    // Sends done tasks of a frame back to the queue: their results could not be read
-    // back at assembly. They are leased and rendered again like new.
-    // `tasks` holds (task index, completion count seen): a task completed again since
-    // then keeps its new result.
-    void RequeueDoneTasks(const std::string& job_id, int frame,
+    // Sends done tasks of a stage of a frame back to the queue: their results could not
+    // be read back at its merge or the frame's assembly. They are leased and run again
+    // like new. `tasks` holds (task index in the stage, completion count seen): a task
+    // completed again since then keeps its new result.
+    void RequeueDoneTasks(const std::string& job_id, int frame, int stage,
                           const std::vector<std::pair<int, int>>& tasks);
     // Fails a job that is not finished yet (e.g. its frame could not be written).
     void FailJob(const std::string& job_id, const std::string& message);
@@ -170,24 +218,29 @@ class Scheduler {
     struct JobInfo {
         std::shared_ptr<const v1::JobSpec> spec;
         std::string name;
-        std::vector<PixelBounds> tiles;
-        Vec2i resolution;
+        RenderSettings settings;                 // frame 0's; set .frame to plan another
+        std::shared_ptr<const RenderPlan> plan;  // the same stages for every frame
         int64_t first_task_id = 0;
         int tasks_total = 0;
     };
     struct Event {
-        enum Kind { kWork, kJob, kFrameReady } kind;
+        enum Kind { kWork, kJob, kStageReady, kFrameReady } kind;
         std::string job_id;
         std::string message;
         int frame = 0;
+        int stage = 0;
     };
     using Events = std::vector<Event>;
 
     void Emit(const Events& events);
     Worker& FindWorker(const std::string& worker_id, int64_t* id);
-    const JobInfo& Info(int64_t job_id);
+    // The job's facts; they stay valid while the caller holds mu_ (EndJob and a job's
+    // end drop them from the cache, not from under a holder of the pointer).
+    std::shared_ptr<const JobInfo> Info(int64_t job_id);
     JobRow LoadJob(int64_t job_id);
     const Lease& CurrentLease(int64_t task_id, int64_t lease_id, TaskRow* task);
+    // The merged artifacts a pending task reads (INTERNAL if one is missing).
+    std::vector<TaskInputRef> Inputs(const JobInfo& info, const TaskRow& task);
     std::string WorkerName(int64_t worker_id) const;
     // Inside a transaction: the job becomes FAILED or CANCELLED, its tasks are dropped
     // and its leases revoked.

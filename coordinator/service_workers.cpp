@@ -20,6 +20,12 @@ void ToProto(const LeasedTask& t, v1::Task* out) {
     out->set_task_index(t.task_index);
     *out->mutable_spec() = *t.spec;
     out->set_attempt(t.attempt);
+    for (const TaskInputRef& in : t.inputs) {
+        v1::TaskInput* input = out->add_inputs();
+        input->set_stage(in.stage);
+        input->set_hash(in.hash);
+        input->set_size(in.size);
+    }
 }
 
 // A long poll: parked in the coordinator's dispatcher until a task is leased to it,

@@ -27,7 +27,8 @@ CREATE TABLE IF NOT EXISTS jobs(
   finished_ms INTEGER NOT NULL DEFAULT 0,
   width INTEGER NOT NULL, height INTEGER NOT NULL, spp INTEGER NOT NULL,
   max_depth INTEGER NOT NULL, tile_size INTEGER NOT NULL, seed INTEGER NOT NULL,
-  integrator TEXT NOT NULL, sampler TEXT NOT NULL, scene_name TEXT NOT NULL);
+  integrator TEXT NOT NULL, sampler TEXT NOT NULL, scene_name TEXT NOT NULL,
+  settings TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS frames(
   job_id INTEGER NOT NULL,
   frame INTEGER NOT NULL,
@@ -41,14 +42,23 @@ CREATE TABLE IF NOT EXISTS frames(
 CREATE TABLE IF NOT EXISTS stages(
   job_id INTEGER NOT NULL,
   frame INTEGER NOT NULL,
-  stage TEXT NOT NULL,
+  stage_index INTEGER NOT NULL,
+  name TEXT NOT NULL,
+  label TEXT NOT NULL,
   num_tasks INTEGER NOT NULL,
-  PRIMARY KEY(job_id, frame, stage)) WITHOUT ROWID;
+  first_task_id INTEGER NOT NULL,
+  tasks_done INTEGER NOT NULL DEFAULT 0,
+  produces_artifact INTEGER NOT NULL,
+  merged INTEGER NOT NULL DEFAULT 0,
+  artifact_hash TEXT NOT NULL DEFAULT '',
+  artifact_size INTEGER NOT NULL DEFAULT 0,
+  PRIMARY KEY(job_id, frame, stage_index)) WITHOUT ROWID;
 CREATE TABLE IF NOT EXISTS tasks(
   id INTEGER PRIMARY KEY,
   job_id INTEGER NOT NULL,
   frame INTEGER NOT NULL,
   stage TEXT NOT NULL,
+  stage_index INTEGER NOT NULL,
   task_index INTEGER NOT NULL,
   priority INTEGER NOT NULL,
   state INTEGER NOT NULL DEFAULT 0,
@@ -68,7 +78,8 @@ CREATE TABLE IF NOT EXISTS failures(
   worker TEXT NOT NULL,
   message TEXT NOT NULL,
   attempt INTEGER NOT NULL,
-  at_ms INTEGER NOT NULL);
+  at_ms INTEGER NOT NULL,
+  stage TEXT NOT NULL DEFAULT '');
 CREATE INDEX IF NOT EXISTS failures_by_job ON failures(job_id, id);
 CREATE TABLE IF NOT EXISTS workers(
   id INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -80,18 +91,47 @@ CREATE TABLE IF NOT EXISTS workers(
 constexpr const char* kJobColumns =
     "id, name, state, priority, frame_start, frame_end, first_task_id, tasks_per_frame, "
     "tasks_total, tasks_done, leases_granted, error, submitted_ms, started_ms, finished_ms, "
-    "width, height, spp, max_depth, tile_size, seed, integrator, sampler, scene_name";
+    "width, height, spp, max_depth, tile_size, seed, integrator, sampler, scene_name, settings";
 constexpr const char* kTaskColumns =
     "id, job_id, frame, stage, task_index, state, attempts, failures, lease_id, worker_id, "
-    "result_hash, completions";
+    "result_hash, completions, stage_index";
 constexpr const char* kFrameColumns =
     "frame, state, tasks_total, tasks_done, first_task_id, started_ms, exr_path";
+constexpr const char* kStageColumns =
+    "frame, stage_index, name, label, num_tasks, tasks_done, first_task_id, produces_artifact, "
+    "merged, artifact_hash, artifact_size";
 
 std::string Sql(const char* head, const char* columns, const char* tail) {
     return std::string(head) + columns + tail;
 }
 
+// A database of another layout is refused rather than misread: its jobs could not be
+// planned (before schema 2, a job's settings were not stored in full).
+void CheckSchemaVersion(SqliteDb& db, const std::string& path) {
+    SqliteStatement version = db.Prepare("PRAGMA user_version");
+    version.Step();
+    const int64_t v = version.Int(0);
+    version.Reset();
+    SqliteStatement tables =
+        db.Prepare("SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'jobs'");
+    tables.Step();
+    const bool has_jobs = tables.Int(0) > 0;
+    tables.Reset();
+    if (v == Store::kSchemaVersion || (v == 0 && !has_jobs)) return;
+    throw std::runtime_error(
+        path + " holds coordinator state of schema version " + std::to_string(v) +
+        ", written by another version of the coordinator; this one reads version " +
+        std::to_string(Store::kSchemaVersion) +
+        " only. Start the coordinator with a fresh --state directory (move this one aside).");
+}
+
 }  // namespace
+
+int NewJob::TasksPerFrame() const {
+    int n = 0;
+    for (const NewStage& s : stages) n += s.num_tasks;
+    return n;
+}
 
 Store::Store(const std::string& path) : path_(path), db_(path) {
     db_.Exec("PRAGMA journal_mode=WAL");
@@ -99,7 +139,9 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     // Checkpoint() normally keeps the WAL short; this is only the fallback.
     db_.Exec("PRAGMA wal_autocheckpoint=20000");
     db_.Exec("PRAGMA foreign_keys=OFF");
+    CheckSchemaVersion(db_, path);
     db_.Exec(kSchema);
+    db_.Exec("PRAGMA user_version = " + std::to_string(kSchemaVersion));
 
     get_meta_ = db_.Prepare("SELECT value FROM meta WHERE key = ?1");
     set_meta_ = db_.Prepare(
@@ -109,16 +151,17 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     insert_job_ = db_.Prepare(
         "INSERT INTO jobs(name, state, priority, spec, frame_start, frame_end, first_task_id, "
         "tasks_per_frame, tasks_total, submitted_ms, width, height, spp, max_depth, tile_size, "
-        "seed, integrator, sampler, scene_name) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, "
-        "?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)");
+        "seed, integrator, sampler, scene_name, settings) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, "
+        "?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)");
     insert_frame_ = db_.Prepare(
         "INSERT INTO frames(job_id, frame, state, tasks_total, first_task_id) "
         "VALUES(?1, ?2, ?3, ?4, ?5)");
-    insert_stage_ =
-        db_.Prepare("INSERT INTO stages(job_id, frame, stage, num_tasks) VALUES(?1, ?2, ?3, ?4)");
+    insert_stage_ = db_.Prepare(
+        "INSERT INTO stages(job_id, frame, stage_index, name, label, num_tasks, first_task_id, "
+        "produces_artifact) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
     insert_task_ = db_.Prepare(
-        "INSERT INTO tasks(id, job_id, frame, stage, task_index, priority) "
-        "VALUES(?1, ?2, ?3, ?4, ?5, ?6)");
+        "INSERT INTO tasks(id, job_id, frame, stage, stage_index, task_index, priority, state) "
+        "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
     max_task_id_ = db_.Prepare("SELECT COALESCE(MAX(id), 0) FROM tasks");
 
     get_job_ = db_.Prepare(Sql("SELECT ", kJobColumns, " FROM jobs WHERE id = ?1"));
@@ -155,6 +198,27 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
         "WHERE j.state = ?1 AND f.state <> ?2 AND f.tasks_done = f.tasks_total "
         "ORDER BY f.job_id, f.frame");
 
+    get_stages_ = db_.Prepare(Sql("SELECT ", kStageColumns,
+                                  " FROM stages WHERE job_id = ?1 ORDER BY frame, stage_index"));
+    get_frame_stages_ = db_.Prepare(Sql("SELECT ", kStageColumns,
+                                        " FROM stages WHERE job_id = ?1 AND frame = ?2 "
+                                        "ORDER BY stage_index"));
+    get_stage_ = db_.Prepare(Sql("SELECT ", kStageColumns,
+                                 " FROM stages WHERE job_id = ?1 AND frame = ?2 AND "
+                                 "stage_index = ?3"));
+    stage_task_done_ = db_.Prepare(
+        "UPDATE stages SET tasks_done = tasks_done + 1 "
+        "WHERE job_id = ?1 AND frame = ?2 AND stage_index = ?3 RETURNING tasks_done");
+    stage_merged_ = db_.Prepare(
+        "UPDATE stages SET merged = 1, artifact_hash = ?4, artifact_size = ?5 "
+        "WHERE job_id = ?1 AND frame = ?2 AND stage_index = ?3 AND merged = 0");
+    release_tasks_ =
+        db_.Prepare("UPDATE tasks SET state = 0 WHERE id BETWEEN ?1 AND ?2 AND state = 4");
+    stages_awaiting_ = db_.Prepare(
+        "SELECT s.job_id, s.frame, s.stage_index FROM stages s JOIN jobs j ON j.id = s.job_id "
+        "WHERE j.state = ?1 AND s.produces_artifact = 1 AND s.merged = 0 AND "
+        "s.tasks_done = s.num_tasks ORDER BY s.job_id, s.frame, s.stage_index");
+
     next_pending_ = db_.Prepare(Sql("SELECT ", kTaskColumns,
                                     " FROM tasks WHERE state = 0 ORDER BY priority DESC, id "
                                     "LIMIT 1"));
@@ -174,21 +238,24 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     requeue_done_ = db_.Prepare(
         "UPDATE tasks SET state = 0, result_hash = '' WHERE id = ?1 AND state = 2 AND "
         "completions = ?2");
+    uncount_stage_done_ = db_.Prepare(
+        "UPDATE stages SET tasks_done = tasks_done - ?4 "
+        "WHERE job_id = ?1 AND frame = ?2 AND stage_index = ?3");
     uncount_frame_done_ = db_.Prepare(
         "UPDATE frames SET tasks_done = tasks_done - ?3 WHERE job_id = ?1 AND frame = ?2");
     uncount_job_done_ = db_.Prepare("UPDATE jobs SET tasks_done = tasks_done - ?2 WHERE id = ?1");
     drop_tasks_ =
-        db_.Prepare("UPDATE tasks SET state = 3 WHERE id BETWEEN ?1 AND ?2 AND state IN (0, 1)");
+        db_.Prepare("UPDATE tasks SET state = 3 WHERE id BETWEEN ?1 AND ?2 AND state IN (0, 1, 4)");
     leased_tasks_ = db_.Prepare(Sql("SELECT ", kTaskColumns, " FROM tasks WHERE state = 1"));
-    frame_results_ = db_.Prepare(
+    stage_results_ = db_.Prepare(
         "SELECT task_index, result_hash, completions FROM tasks WHERE id BETWEEN ?1 AND ?2 "
         "ORDER BY id");
 
     insert_failure_ = db_.Prepare(
-        "INSERT INTO failures(job_id, frame, task_index, worker, message, attempt, at_ms) "
-        "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+        "INSERT INTO failures(job_id, frame, task_index, worker, message, attempt, at_ms, "
+        "stage) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
     recent_failures_ = db_.Prepare(
-        "SELECT frame, task_index, attempt, worker, message FROM failures "
+        "SELECT frame, task_index, attempt, worker, message, stage FROM failures "
         "WHERE job_id = ?1 ORDER BY id DESC LIMIT ?2");
     insert_worker_ =
         db_.Prepare("INSERT INTO workers(name, threads, registered_ms) VALUES(?1, ?2, ?3)");
@@ -218,21 +285,29 @@ int64_t Store::InsertJob(const NewJob& job, int64_t now_ms) {
     const int64_t first_task = max_task_id_.Int(0) + 1;
     max_task_id_.Reset();
     const int frames = job.frame_end - job.frame_start + 1;
+    const int tasks_per_frame = job.TasksPerFrame();
     const JobSettings& s = job.settings;
     insert_job_
         .Bind(job.name, int(v1::JOB_STATE_QUEUED), job.priority, SqliteBlobArg{job.spec},
-              job.frame_start, job.frame_end, first_task, job.tasks_per_frame,
-              int64_t(frames) * job.tasks_per_frame, now_ms, s.width, s.height, s.spp, s.max_depth,
-              s.tile_size, s.seed, s.integrator, s.sampler, s.scene_name)
+              job.frame_start, job.frame_end, first_task, tasks_per_frame,
+              int64_t(frames) * tasks_per_frame, now_ms, s.width, s.height, s.spp, s.max_depth,
+              s.tile_size, s.seed, s.integrator, s.sampler, s.scene_name, job.render_settings)
         .Run();
     const int64_t job_id = db_.LastInsertRowid();
     int64_t task_id = first_task;
     for (int f = job.frame_start; f <= job.frame_end; ++f) {
-        insert_frame_.Bind(job_id, f, int(v1::FRAME_STATE_PENDING), job.tasks_per_frame, task_id)
-            .Run();
-        insert_stage_.Bind(job_id, f, "render", job.tasks_per_frame).Run();
-        for (int i = 0; i < job.tasks_per_frame; ++i)
-            insert_task_.Bind(task_id++, job_id, f, "render", i, job.priority).Run();
+        insert_frame_.Bind(job_id, f, int(v1::FRAME_STATE_PENDING), tasks_per_frame, task_id).Run();
+        for (size_t si = 0; si < job.stages.size(); ++si) {
+            const NewStage& stage = job.stages[si];
+            insert_stage_
+                .Bind(job_id, f, int(si), stage.name, stage.label, stage.num_tasks, task_id,
+                      stage.produces_artifact ? 1 : 0)
+                .Run();
+            const int state = int(stage.waiting ? TaskState::kWaiting : TaskState::kPending);
+            for (int i = 0; i < stage.num_tasks; ++i)
+                insert_task_.Bind(task_id++, job_id, f, stage.name, int(si), i, job.priority, state)
+                    .Run();
+        }
     }
     return job_id;
 }
@@ -266,6 +341,7 @@ std::optional<JobRow> Store::GetJob(int64_t job_id) {
     j.settings.integrator = s.Text(21);
     j.settings.sampler = s.Text(22);
     j.settings.scene_name = s.Text(23);
+    j.render_settings = s.Text(24);
     get_job_.Reset();
     return j;
 }
@@ -366,6 +442,71 @@ std::vector<std::pair<int64_t, int>> Store::FramesAwaitingAssembly() {
     return out;
 }
 
+StageRow Store::ReadStage(const SqliteStatement& s) const {
+    StageRow r;
+    r.frame = int(s.Int(0));
+    r.index = int(s.Int(1));
+    r.name = s.Text(2);
+    r.label = s.Text(3);
+    r.num_tasks = int(s.Int(4));
+    r.tasks_done = int(s.Int(5));
+    r.first_task_id = s.Int(6);
+    r.produces_artifact = s.Int(7) != 0;
+    r.merged = s.Int(8) != 0;
+    r.artifact_hash = s.Text(9);
+    r.artifact_size = static_cast<uint64_t>(s.Int(10));
+    return r;
+}
+
+std::vector<StageRow> Store::GetStages(int64_t job_id) {
+    std::vector<StageRow> out;
+    get_stages_.Bind(job_id);
+    while (get_stages_.Step()) out.push_back(ReadStage(get_stages_));
+    return out;
+}
+
+std::vector<StageRow> Store::GetFrameStages(int64_t job_id, int frame) {
+    std::vector<StageRow> out;
+    get_frame_stages_.Bind(job_id, frame);
+    while (get_frame_stages_.Step()) out.push_back(ReadStage(get_frame_stages_));
+    return out;
+}
+
+std::optional<StageRow> Store::GetStage(int64_t job_id, int frame, int stage) {
+    get_stage_.Bind(job_id, frame, stage);
+    if (!get_stage_.Step()) return std::nullopt;
+    StageRow r = ReadStage(get_stage_);
+    get_stage_.Reset();
+    return r;
+}
+
+int Store::CountStageTaskDone(int64_t job_id, int frame, int stage) {
+    stage_task_done_.Bind(job_id, frame, stage);
+    int done = stage_task_done_.Step() ? int(stage_task_done_.Int(0)) : 0;
+    stage_task_done_.Reset();
+    return done;
+}
+
+bool Store::SetStageMerged(int64_t job_id, int frame, int stage, const std::string& hash,
+                           uint64_t size) {
+    stage_merged_.Bind(job_id, frame, stage, hash, size).Run();
+    return db_.Changes() == 1;
+}
+
+int Store::ReleaseTasks(int64_t first_task_id, int64_t last_task_id) {
+    release_tasks_.Bind(first_task_id, last_task_id).Run();
+    return int(db_.Changes());
+}
+
+std::vector<std::tuple<int64_t, int, int>> Store::StagesAwaitingMerge() {
+    std::vector<std::tuple<int64_t, int, int>> out;
+    stages_awaiting_.Bind(int(v1::JOB_STATE_RUNNING));
+    while (stages_awaiting_.Step())
+        out.emplace_back(stages_awaiting_.Int(0), int(stages_awaiting_.Int(1)),
+                         int(stages_awaiting_.Int(2)));
+    return out;
+}
+
 TaskRow Store::ReadTask(const SqliteStatement& s) const {
     TaskRow t;
     t.id = s.Int(0);
@@ -380,6 +521,7 @@ TaskRow Store::ReadTask(const SqliteStatement& s) const {
     t.worker_id = s.Int(9);
     t.result_hash = s.Text(10);
     t.completions = int(s.Int(11));
+    t.stage_index = int(s.Int(12));
     return t;
 }
 
@@ -425,7 +567,8 @@ bool Store::RequeueDoneTask(int64_t task_id, int completions) {
     return db_.Changes() == 1;
 }
 
-void Store::UncountTasksDone(int64_t job_id, int frame, int n) {
+void Store::UncountTasksDone(int64_t job_id, int frame, int stage, int n) {
+    uncount_stage_done_.Bind(job_id, frame, stage, n).Run();
     uncount_frame_done_.Bind(job_id, frame, n).Run();
     uncount_job_done_.Bind(job_id, n).Run();
 }
@@ -441,20 +584,21 @@ std::vector<TaskRow> Store::LeasedTasks() {
     return tasks;
 }
 
-std::vector<std::pair<int, std::string>> Store::FrameResults(const FrameRow& frame,
+std::vector<std::pair<int, std::string>> Store::StageResults(const StageRow& stage,
                                                              std::vector<int>* completions) {
     std::vector<std::pair<int, std::string>> out;
-    out.reserve(frame.tasks_total);
-    frame_results_.Bind(frame.first_task_id, frame.first_task_id + frame.tasks_total - 1);
-    while (frame_results_.Step()) {
-        out.emplace_back(int(frame_results_.Int(0)), frame_results_.Text(1));
-        if (completions) completions->push_back(int(frame_results_.Int(2)));
+    out.reserve(stage.num_tasks);
+    stage_results_.Bind(stage.first_task_id, stage.first_task_id + stage.num_tasks - 1);
+    while (stage_results_.Step()) {
+        out.emplace_back(int(stage_results_.Int(0)), stage_results_.Text(1));
+        if (completions) completions->push_back(int(stage_results_.Int(2)));
     }
     return out;
 }
 
 void Store::InsertFailure(int64_t job_id, const FailureRow& f, int64_t now_ms) {
-    insert_failure_.Bind(job_id, f.frame, f.task_index, f.worker, f.message, f.attempt, now_ms)
+    insert_failure_
+        .Bind(job_id, f.frame, f.task_index, f.worker, f.message, f.attempt, now_ms, f.stage)
         .Run();
 }
 
@@ -468,6 +612,7 @@ std::vector<FailureRow> Store::RecentFailures(int64_t job_id, int limit) {
         f.attempt = int(recent_failures_.Int(2));
         f.worker = recent_failures_.Text(3);
         f.message = recent_failures_.Text(4);
+        f.stage = recent_failures_.Text(5);
         out.push_back(std::move(f));
     }
     return out;

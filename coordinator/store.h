@@ -1,30 +1,35 @@
 #pragma once
 
 // The coordinator's durable state in one SQLite database (WAL): jobs, their frames and
-// stages, one row per task (with its current lease), task failures and workers. Typed
+// the stages of each frame's render plan (with the merged artifact of each artifact
+// stage), one row per task (with its current lease), task failures and workers. Typed
 // queries over prepared statements; the caller (the scheduler) serialises access and
 // groups statements into transactions, so every acknowledged change is one commit.
 //
-// Task ids are allocated contiguously per job, frame by frame, tile by tile: a frame's
-// tasks are the id range [first_task_id, first_task_id + tasks_total), and id order is
-// (job, frame, task index) order. The pending queue is a partial index over
-// (priority DESC, id), so picking the next task is one index lookup however many
-// tasks are queued.
+// Task ids are allocated contiguously per job, frame by frame, stage by stage, task by
+// task: a frame's tasks are the id range [first_task_id, first_task_id + tasks_total),
+// a stage's are [its first_task_id, + num_tasks), and id order is (job, frame, stage,
+// task index) order. The pending queue is a partial index over (priority DESC, id), so
+// picking the next task is one index lookup however many tasks are queued. Tasks of a
+// stage whose inputs are not merged yet wait outside it (state kWaiting) until the
+// transaction that records the merge releases them.
 
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "sqlite_db.h"
 
 namespace tessera {
 
-enum class TaskState : int { kPending = 0, kLeased = 1, kDone = 2, kDropped = 3 };
+enum class TaskState : int { kPending = 0, kLeased = 1, kDone = 2, kDropped = 3, kWaiting = 4 };
 
-// Settings resolved at submission (scene file + overrides): what assembly, result
-// checks and the status need, so that nothing has to load the scene again.
+// A few of the settings resolved at submission, as columns for the status and logs.
+// Planning, result checks, merges and assembly use the full settings (NewJob and
+// JobRow::render_settings), so that nothing has to load the scene again.
 struct JobSettings {
     int width = 0, height = 0;
     int spp = 0, max_depth = 0, tile_size = 0;
@@ -33,13 +38,25 @@ struct JobSettings {
     std::string scene_name;  // the scene file's name, for the EXR header
 };
 
+// One stage of every frame of a new job, in plan order.
+struct NewStage {
+    std::string name;   // "photons", "irradiance-2", "render"
+    std::string label;  // "photons", "irradiance pass 2/3", "render"
+    int num_tasks = 0;
+    bool produces_artifact = false;
+    bool waiting = false;  // reads artifacts: its tasks wait until those are merged
+};
+
 struct NewJob {
     std::string name;
     int priority = 0;
     std::string spec;  // the serialized v1::JobSpec
     JobSettings settings;
+    std::string render_settings;  // EncodeRenderSettings of the resolved settings
     int frame_start = 0, frame_end = 0;
-    int tasks_per_frame = 0;  // tiles of the render stage
+    std::vector<NewStage> stages;  // of each frame (Scheduler::AddJob fills it in)
+
+    int TasksPerFrame() const;
 };
 
 struct JobRow {
@@ -55,6 +72,7 @@ struct JobRow {
     std::string error;
     int64_t submitted_ms = 0, started_ms = 0, finished_ms = 0;
     JobSettings settings;
+    std::string render_settings;
 };
 
 struct FrameRow {
@@ -66,11 +84,27 @@ struct FrameRow {
     std::string exr_path;
 };
 
+// A stage of one frame.
+struct StageRow {
+    int frame = 0;
+    int index = 0;  // in the frame's plan
+    std::string name, label;
+    int num_tasks = 0, tasks_done = 0;
+    int64_t first_task_id = 0;
+    bool produces_artifact = false;
+    bool merged = false;  // its artifact is stored (artifact stages only)
+    std::string artifact_hash;
+    uint64_t artifact_size = 0;
+    // Finished: merged, or (for a stage without an artifact) all tasks done.
+    bool Finished() const { return produces_artifact ? merged : tasks_done == num_tasks; }
+};
+
 struct TaskRow {
     int64_t id = 0;
     int64_t job_id = 0;
     int frame = 0;
     std::string stage;
+    int stage_index = 0;
     int task_index = 0;
     TaskState state = TaskState::kPending;
     int attempts = 0;  // leases handed out
@@ -84,6 +118,7 @@ struct TaskRow {
 struct FailureRow {
     int frame = 0, task_index = 0, attempt = 0;
     std::string worker, message;
+    std::string stage;
 };
 
 struct WorkerRow {
@@ -94,8 +129,13 @@ struct WorkerRow {
 
 class Store {
   public:
+    // The layout this code reads and writes (PRAGMA user_version).
+    static constexpr int kSchemaVersion = 2;
+
     // Opens or creates the database, in WAL mode with synchronous=NORMAL: a commit is
     // in the WAL before the call returns, so it survives the process being killed.
+    // Throws std::runtime_error for a database of another schema version (state from
+    // an older coordinator: start with a fresh state directory).
     explicit Store(const std::string& path);
 
     SqliteDb& Db() { return db_; }
@@ -107,7 +147,8 @@ class Store {
     int64_t GetMeta(const std::string& key, int64_t fallback);
     void SetMeta(const std::string& key, int64_t value);
 
-    // Inserts the job, its frames, stages and tasks; returns the job's id.
+    // Inserts the job, its frames, stages and tasks (those of stages that wait for
+    // inputs as kWaiting); returns the job's id.
     int64_t InsertJob(const NewJob& job, int64_t now_ms);
     std::optional<JobRow> GetJob(int64_t job_id);
     std::string GetJobSpec(int64_t job_id);
@@ -131,6 +172,21 @@ class Store {
     // in running jobs: work left over from a crash.
     std::vector<std::pair<int64_t, int>> FramesAwaitingAssembly();
 
+    // Every stage of the job, by frame, then plan order.
+    std::vector<StageRow> GetStages(int64_t job_id);
+    std::vector<StageRow> GetFrameStages(int64_t job_id, int frame);
+    std::optional<StageRow> GetStage(int64_t job_id, int frame, int stage);
+    // Returns the stage's tasks done after counting this one.
+    int CountStageTaskDone(int64_t job_id, int frame, int stage);
+    // Records the stage's artifact; false if it was already merged.
+    bool SetStageMerged(int64_t job_id, int frame, int stage, const std::string& hash,
+                        uint64_t size);
+    // Waiting tasks in [first, last] become pending; returns how many.
+    int ReleaseTasks(int64_t first_task_id, int64_t last_task_id);
+    // (job id, frame, stage) of artifact stages whose tasks are all done but whose
+    // artifact is not recorded, in running jobs: merges left over from a crash.
+    std::vector<std::tuple<int64_t, int, int>> StagesAwaitingMerge();
+
     std::optional<TaskRow> NextPendingTask();
     std::optional<TaskRow> GetTask(int64_t task_id);
     void LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id);
@@ -144,15 +200,15 @@ class Store {
     // Re-queues a done task only if it has been completed exactly `completions` times,
     // i.e. not again since its result was found unreadable.
     bool RequeueDoneTask(int64_t task_id, int completions);
-    // Takes `n` back from the frame's and the job's tasks done.
-    void UncountTasksDone(int64_t job_id, int frame, int n);
-    // Pending and leased tasks in [first, last] are dropped (cancel, job failure).
+    // Takes `n` back from the stage's, the frame's and the job's tasks done.
+    void UncountTasksDone(int64_t job_id, int frame, int stage, int n);
+    // Pending, waiting and leased tasks in [first, last] are dropped (cancel, job
+    // failure).
     void DropTasks(int64_t first_task_id, int64_t last_task_id);
     std::vector<TaskRow> LeasedTasks();
-    // (task index, result hash) of a frame's tasks, in task order.
-    // (task index, result blob) in task order; *completions (if given) gets each task's
-    // completion count alongside.
-    std::vector<std::pair<int, std::string>> FrameResults(const FrameRow& frame,
+    // (task index, result blob) of a stage's tasks, in task order; *completions (if
+    // given) gets each task's completion count alongside.
+    std::vector<std::pair<int, std::string>> StageResults(const StageRow& stage,
                                                           std::vector<int>* completions = nullptr);
 
     void InsertFailure(int64_t job_id, const FailureRow& failure, int64_t now_ms);
@@ -166,6 +222,7 @@ class Store {
     std::string path_;
     TaskRow ReadTask(const SqliteStatement& s) const;
     FrameRow ReadFrame(const SqliteStatement& s) const;
+    StageRow ReadStage(const SqliteStatement& s) const;
 
     SqliteDb db_;
     std::unique_ptr<SqliteDb> checkpoint_db_;
@@ -175,9 +232,11 @@ class Store {
         count_task_done_, job_state_, uncount_lease_;
     SqliteStatement get_frames_, get_frame_, frame_rendering_, frame_task_done_, frame_done_,
         fail_open_frames_, frames_not_done_, frames_awaiting_;
+    SqliteStatement get_stages_, get_frame_stages_, get_stage_, stage_task_done_, stage_merged_,
+        release_tasks_, stages_awaiting_;
     SqliteStatement next_pending_, get_task_, lease_task_, complete_task_, requeue_task_,
-        release_task_, requeue_done_, uncount_frame_done_, uncount_job_done_, drop_tasks_,
-        leased_tasks_, frame_results_;
+        release_task_, requeue_done_, uncount_stage_done_, uncount_frame_done_, uncount_job_done_,
+        drop_tasks_, leased_tasks_, stage_results_;
     SqliteStatement insert_failure_, recent_failures_, insert_worker_, workers_;
 };
 

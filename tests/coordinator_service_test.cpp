@@ -51,6 +51,33 @@ constexpr const char* kScene = R"json({
 })json";
 constexpr int kTasksPerFrame = 6;
 
+// The same with a floor, for photons to land on.
+constexpr const char* kStagedScene = R"json({
+  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 4,
+             "tile_size": 8},
+  "camera": {"type": "perspective", "eye": [0, 1, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+             "fov": 40},
+  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
+  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"},
+             {"type": "sphere", "center": [0, -101, 0], "radius": 100, "material": "white"}],
+  "lights": [{"type": "point", "position": [1, 3, 2], "intensity": 20}]
+})json";
+
+// Photon mapping with the final gather behind an irradiance cache: per frame 3 photon
+// batches, two irradiance passes and the render stage, 3 + 6 + 6 + 6 tasks.
+RenderOverrides StagedOverrides() {
+    RenderOverrides o;
+    o.integrator = "photon";
+    o.irradiance_cache = true;
+    o.photons_global = 3000;
+    o.photons_caustic = 500;
+    o.photon_batches = 3;
+    o.ic_passes = 2;
+    o.ic_samples = 16;
+    return o;
+}
+constexpr int kStagedTasksPerFrame = 21;
+
 ErrorCode CodeOf(const std::function<void()>& f, std::string* message = nullptr) {
     try {
         f();
@@ -148,14 +175,23 @@ class CoordinatorTest : public ::testing::Test {
         return promise.get_future().get();
     }
 
-    // What a worker would upload: the encoded tile of the task.
+    // What a worker would upload: the encoded result of the task, run with the
+    // artifacts it names (read from the coordinator's blob store).
     std::string Render(const LeasedTask& task) {
         if (!loaded_.scene) loaded_ = LoadSceneFile(scene_path_, FromProto(task.spec->options()));
         RenderSettings settings = loaded_.settings;
         settings.frame = task.frame;
         FrameRenderer renderer(*loaded_.scene, settings);
+        const RenderPlan& plan = renderer.Plan();
+        const int stage = plan.StageIndex(task.stage.empty() ? kRenderStage : task.stage);
+        EXPECT_GE(stage, 0) << task.stage;
+        ArtifactSet artifacts(plan.stages.size());
+        for (const TaskInputRef& in : task.inputs) {
+            const int s = plan.StageIndex(in.stage);
+            artifacts.at(s) = renderer.LoadArtifact(s, C().Blobs().ReadVerified(in.hash));
+        }
         ScratchBuffer arena;
-        return EncodeTileResult(ExecuteTileTask(renderer, task.task_index, arena));
+        return renderer.RunTask(stage, task.task_index, artifacts, arena);
     }
     void RenderAll(const std::string& worker) {
         while (std::optional<LeasedTask> t = LeaseNow(worker)) {
@@ -173,8 +209,9 @@ class CoordinatorTest : public ::testing::Test {
         } while (std::chrono::steady_clock::now() < until);
         return st;
     }
-    void ExpectSameAsLocal(const std::string& exr, int frame) {
-        LoadedScene local = LoadSceneFile(scene_path_);
+    void ExpectSameAsLocal(const std::string& exr, int frame,
+                           const RenderOverrides& overrides = {}) {
+        LoadedScene local = LoadSceneFile(scene_path_, overrides);
         RenderSettings settings = local.settings;
         settings.frame = frame;
         Image expected = RenderFrameLocal(*local.scene, settings, 2);
@@ -304,7 +341,7 @@ TEST_F(CoordinatorTest, CompleteChecksTheResultBlob) {
     const std::string other_tile = PutBlob(Render(b));
     EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, other_tile); }, &message),
               ErrorCode::kInvalidArgument);
-    EXPECT_NE(message.find("not task"), std::string::npos) << message;
+    EXPECT_NE(message.find("is not a result of task"), std::string::npos) << message;
     EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id + 100, junk); }),
               ErrorCode::kFailedPrecondition);
     C().CompleteTask(w, a.task_id, a.lease_id, PutBlob(Render(a)));
@@ -347,9 +384,10 @@ TEST_F(CoordinatorTest, InlineResultsAreChecked) {
     EXPECT_EQ(complete("not a hash", result), ErrorCode::kInvalidArgument);
     // Not a tile result, another task's tile.
     EXPECT_EQ(complete("", "not a tile result at all"), ErrorCode::kInvalidArgument);
-    EXPECT_NE(message.find("inline result is not a tile result"), std::string::npos) << message;
+    EXPECT_NE(message.find("inline result is not a result of task"), std::string::npos) << message;
+    EXPECT_NE(message.find("not a tile result"), std::string::npos) << message;
     EXPECT_EQ(complete("", Render(b)), ErrorCode::kInvalidArgument);
-    EXPECT_NE(message.find("not task"), std::string::npos) << message;
+    EXPECT_NE(message.find("is not a result of task"), std::string::npos) << message;
     EXPECT_EQ(complete("", std::string(kMaxInlineResultBytes + 1, 'x')),
               ErrorCode::kResourceExhausted);
     // Nothing was stored and nothing completed.
@@ -495,9 +533,9 @@ TEST_F(CoordinatorTest, RequeueSparesATaskCompletedSinceItsResultWasRead) {
     FrameAssemblyInput in = C().GetScheduler().GetAssemblyInput(job, 0);
     ASSERT_EQ(in.completions.size(), in.results.size());
     EXPECT_EQ(in.completions[3], 1);
-    C().GetScheduler().RequeueDoneTasks(job, 0, {{3, in.completions[3] + 1}});
+    C().GetScheduler().RequeueDoneTasks(job, 0, 0, {{3, in.completions[3] + 1}});
     EXPECT_FALSE(LeaseNow(w, 0).has_value());
-    C().GetScheduler().RequeueDoneTasks(job, 0, {{3, in.completions[3]}});
+    C().GetScheduler().RequeueDoneTasks(job, 0, 0, {{3, in.completions[3]}});
     std::optional<LeasedTask> again = LeaseNow(w, 100);
     ASSERT_TRUE(again.has_value());
     EXPECT_EQ(again->task_index, 3);
@@ -540,6 +578,120 @@ TEST_F(CoordinatorTest, CancelStopsWorkAndWritesNothing) {
     EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, PutBlob(Render(t))); }),
               ErrorCode::kFailedPrecondition);
     EXPECT_FALSE(fs::exists(dir_ / "out" / job));
+}
+
+// A multi-stage plan through the logic layer: each stage's tasks are completed in
+// reverse order, some inline, some as blobs; the merges and the frame still come out
+// in task order, equal to the local runner's.
+TEST_F(CoordinatorTest, StagedPlanEqualsTheLocalRunnerWhateverTheCompletionOrder) {
+    std::ofstream(scene_path_, std::ios::trunc) << kStagedScene;
+    v1::JobSpec spec = SceneSpec(kStagedScene);
+    spec.set_name("staged");
+    *spec.mutable_options() = ToProto(StagedOverrides());
+    std::string job = C().SubmitJob(spec);
+    EXPECT_EQ(C().GetJob(job).tasks_total(), kStagedTasksPerFrame);
+    std::string w = C().Register("w1", 1).worker_id;
+    std::vector<std::string> stages;
+    int completed = 0;
+    while (true) {
+        std::vector<LeasedTask> batch;
+        while (std::optional<LeasedTask> t = LeaseNow(w)) batch.push_back(*t);
+        if (batch.empty()) {
+            // The next stage comes once the merge is recorded (or the frame is written).
+            C().FrameWork().WaitIdle();
+            while (std::optional<LeasedTask> t = LeaseNow(w)) batch.push_back(*t);
+            if (batch.empty()) break;
+        }
+        for (const LeasedTask& t : batch) EXPECT_EQ(t.stage, batch[0].stage);
+        stages.push_back(batch[0].stage);
+        v1::JobStatus st = C().GetJob(job);
+        EXPECT_EQ(st.frames(0).stage(), batch[0].stage);
+        EXPECT_EQ(st.frames(0).stage_total(), static_cast<int>(batch.size()));
+        for (auto it = batch.rbegin(); it != batch.rend(); ++it) {
+            const std::string result = Render(*it);
+            if (++completed % 2)
+                C().CompleteTask(w, it->task_id, it->lease_id, "", result);
+            else
+                C().CompleteTask(w, it->task_id, it->lease_id, PutBlob(result));
+        }
+    }
+    EXPECT_EQ(stages,
+              (std::vector<std::string>{"photons", "irradiance-1", "irradiance-2", "render"}));
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kStagedTasksPerFrame);
+    ExpectSameAsLocal((dir_ / "out" / job / "staged.0000.exr").string(), 0, StagedOverrides());
+}
+
+// Killed after the last photon batch completed, before the merge: the restarted
+// coordinator merges it, and the job goes on without any batch computed again.
+TEST_F(CoordinatorTest, RestartMergesAStageWhoseTasksWereAllDone) {
+    std::ofstream(scene_path_, std::ios::trunc) << kStagedScene;
+    start_ = false;  // no merge thread: as if killed right after the last CompleteTask
+    v1::JobSpec spec = SceneSpec(kStagedScene);
+    *spec.mutable_options() = ToProto(StagedOverrides());
+    std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    EXPECT_EQ(C().GetJob(job).tasks_done(), 3);
+    EXPECT_EQ(C().GetJob(job).frames(0).stage(), "photons");
+    start_ = true;
+    Restart();
+    auto until = std::chrono::steady_clock::now() + 10s;
+    std::optional<LeasedTask> next;
+    while (!next && std::chrono::steady_clock::now() < until) next = LeaseNow(w, 100);
+    ASSERT_TRUE(next.has_value());
+    EXPECT_EQ(next->stage, "irradiance-1");
+    ASSERT_EQ(next->inputs.size(), 1u);
+    EXPECT_EQ(next->inputs[0].stage, "photons");
+    C().CompleteTask(w, next->task_id, next->lease_id, PutBlob(Render(*next)));
+    while (true) {
+        RenderAll(w);
+        C().FrameWork().WaitIdle();
+        if (C().GetJob(job).state() != v1::JOB_STATE_RUNNING) break;
+    }
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kStagedTasksPerFrame);
+    ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0, StagedOverrides());
+}
+
+// A photon batch lost before the merge (results are not synced) is computed again; the
+// merged artifact is durable, so nothing after it is ever lost.
+TEST_F(CoordinatorTest, ALostPhotonBatchIsComputedAgainBeforeTheMerge) {
+    std::ofstream(scene_path_, std::ios::trunc) << kStagedScene;
+    start_ = false;
+    v1::JobSpec spec = SceneSpec(kStagedScene);
+    *spec.mutable_options() = ToProto(StagedOverrides());
+    std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    while (std::optional<LeasedTask> t = LeaseNow(w))
+        C().CompleteTask(w, t->task_id, t->lease_id, "", Render(*t));
+    const StageMergeInput in = C().GetScheduler().GetMergeInput(job, 0, 0);
+    ASSERT_TRUE(in.ready);
+    fs::remove(C().Blobs().PathOf(in.results[1].second));
+    start_ = true;
+    Restart();
+    auto until = std::chrono::steady_clock::now() + 10s;
+    std::optional<LeasedTask> again;
+    while (!again && std::chrono::steady_clock::now() < until) again = LeaseNow(w, 100);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(again->stage, "photons");
+    EXPECT_EQ(again->task_index, 1);
+    EXPECT_EQ(again->attempt, 2);
+    C().CompleteTask(w, again->task_id, again->lease_id, "", Render(*again));
+    C().FrameWork().WaitIdle();
+    const StageMergeInput merged = C().GetScheduler().GetMergeInput(job, 0, 0);
+    EXPECT_TRUE(merged.merged);
+    while (true) {
+        RenderAll(w);
+        C().FrameWork().WaitIdle();
+        if (C().GetJob(job).state() != v1::JOB_STATE_RUNNING) break;
+    }
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), kStagedTasksPerFrame + 1);
+    ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0, StagedOverrides());
 }
 
 // The gRPC adapters over an in-process channel: no sockets.

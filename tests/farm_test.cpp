@@ -31,6 +31,7 @@
 #include "bundle.h"
 #include "convert.h"
 #include "io/image_io.h"
+#include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
 #include "sha256.h"
@@ -50,6 +51,48 @@ const std::vector<std::string> kSmall = {"--width", "64", "--height",    "64",
 // Enough work (64 tiles) that a crash can happen in the middle of the job.
 const std::vector<std::string> kMedium = {"--width", "128", "--height",    "128",
                                           "--spp",   "24",  "--tile-size", "16"};
+// Multi-stage plans, small: photon mapping with its final gather behind an irradiance
+// cache (photons 4, irradiance-1 16, irradiance-2 16, render 16 tasks), and irradiance
+// caching alone (the photon options are unused there).
+const std::vector<std::string> kStagedSmall = {"--width",
+                                               "64",
+                                               "--height",
+                                               "64",
+                                               "--spp",
+                                               "4",
+                                               "--tile-size",
+                                               "16",
+                                               "--photons",
+                                               "20000",
+                                               "--caustic-photons",
+                                               "5000",
+                                               "--photon-batches",
+                                               "4",
+                                               "--ic-passes",
+                                               "2",
+                                               "--ic-samples",
+                                               "64"};
+const std::vector<std::string> kPhotonIc = {"--integrator", "photon", "--irradiance-cache"};
+const std::vector<std::string> kIrradianceCache = {"--integrator", "irradiance-cache"};
+// Longer stages (16 tasks of ~50 ms each) for crashes in the middle of one.
+const std::vector<std::string> kStagedMedium = {"--width",
+                                                "128",
+                                                "--height",
+                                                "128",
+                                                "--spp",
+                                                "8",
+                                                "--tile-size",
+                                                "32",
+                                                "--photons",
+                                                "20000",
+                                                "--caustic-photons",
+                                                "5000",
+                                                "--photon-batches",
+                                                "4",
+                                                "--ic-passes",
+                                                "2",
+                                                "--ic-samples",
+                                                "256"};
 
 std::string ReadFile(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
@@ -185,12 +228,29 @@ struct Ctx : grpc::ClientContext {
 // The render options of `tessera render`-style arguments, for the gRPC API.
 v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
     RenderOverrides o;
-    for (size_t i = 0; i + 1 < args.size(); i += 2) {
-        int value = std::stoi(args[i + 1]);
-        if (args[i] == "--width") o.width = value;
-        if (args[i] == "--height") o.height = value;
-        if (args[i] == "--spp") o.spp = value;
-        if (args[i] == "--tile-size") o.tile_size = value;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        if (a == "--irradiance-cache") {
+            o.irradiance_cache = true;
+            continue;
+        }
+        if (a == "--no-gradients") {
+            o.ic_gradients = false;
+            continue;
+        }
+        if (i + 1 >= args.size()) break;
+        const std::string& v = args[++i];
+        if (a == "--integrator") o.integrator = v;
+        if (a == "--width") o.width = std::stoi(v);
+        if (a == "--height") o.height = std::stoi(v);
+        if (a == "--spp") o.spp = std::stoi(v);
+        if (a == "--tile-size") o.tile_size = std::stoi(v);
+        if (a == "--photons") o.photons_global = std::stoi(v);
+        if (a == "--caustic-photons") o.photons_caustic = std::stoi(v);
+        if (a == "--photon-batches") o.photon_batches = std::stoi(v);
+        if (a == "--ic-passes") o.ic_passes = std::stoi(v);
+        if (a == "--ic-samples") o.ic_samples = std::stoi(v);
+        if (a == "--ic-accuracy") o.ic_accuracy = std::stof(v);
     }
     return ToProto(o);
 }
@@ -832,6 +892,156 @@ TEST_F(FarmTest, BadRequestsGetTheRightStatus) {
     EXPECT_NE(watch.code, 0);
     EXPECT_NE(watch.err.find("cancelled"), std::string::npos) << watch.err;
     still_serving("the cancellation");
+}
+
+// Multi-stage plans (photon batches, irradiance passes, tiles) on one, two and three
+// workers, two jobs at once: every farm image equals the local render bit for bit,
+// however the tasks of each stage were shared out.
+TEST_F(FarmTest, StagedPlansMatchTheLocalRenderOnOneTwoAndThreeWorkers) {
+    const std::vector<std::string> photon = Concat(kStagedSmall, kPhotonIc);
+    const std::vector<std::string> irradiance = Concat(kStagedSmall, kIrradianceCache);
+    const fs::path local_photon = RenderLocal(photon), local_irradiance = RenderLocal(irradiance);
+    for (int workers = 1; workers <= 3; ++workers) {
+        SCOPED_TRACE(std::to_string(workers) + " worker(s)");
+        const std::string state = "state-" + std::to_string(workers);
+        Process* coordinator = nullptr;
+        int port = StartCoordinator(state, 0, 0, &coordinator);
+        ASSERT_GT(port, 0);
+        std::vector<Process*> started;
+        for (int i = 1; i <= workers; ++i)
+            started.push_back(&StartWorker(port, state + "-w" + std::to_string(i)));
+        Stubs s(port);
+        const std::string a = SubmitCornell(s, photon), b = SubmitCornell(s, irradiance);
+        v1::JobStatus status;
+        ASSERT_TRUE(WaitDone(s, a, &status));
+        EXPECT_EQ(status.tasks_total(), 4 + 3 * 16);
+        EXPECT_EQ(status.frames(0).stage(), "render");
+        ExpectSameImage(local_photon, Download(s, a, 0));
+        ASSERT_TRUE(WaitDone(s, b, &status));
+        EXPECT_EQ(status.tasks_total(), 3 * 16);
+        ExpectSameImage(local_irradiance, Download(s, b, 0));
+        for (Process* p : started) p->Kill(SIGKILL);
+        coordinator->Kill(SIGKILL);
+    }
+}
+
+// `status` and `watch` say which stage a frame is in: here the photons, before any
+// worker has come.
+TEST_F(FarmTest, StatusAndWatchNameTheStage) {
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    const std::string address = "127.0.0.1:" + std::to_string(port);
+    const std::vector<std::string> args = Concat(kStagedSmall, kPhotonIc);
+    CliResult submit =
+        Cli(Concat({"submit", kCornell, "--coordinator", address, "--name", "staged"}, args));
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    const std::string job_id = Trim(submit.out);
+    CliResult status = Cli({"status", job_id, "--coordinator", address});
+    EXPECT_EQ(status.code, 0) << status.err;
+    EXPECT_NE(status.out.find("photons 0/4"), std::string::npos) << status.out;
+
+    Process& watch = Start({TESSERA_CLI, "watch", job_id, "--coordinator", address}, "watch");
+    auto deadline = Clock::now() + 30s;
+    while (ReadFile(dir_ / "watch.log").find("photons 0/4") == std::string::npos &&
+           watch.Running() && Clock::now() < deadline)
+        std::this_thread::sleep_for(20ms);
+    EXPECT_NE(ReadFile(dir_ / "watch.log").find("photons 0/4"), std::string::npos)
+        << ReadFile(dir_ / "watch.log");
+    for (int i = 1; i <= 3; ++i) StartWorker(port, "w" + std::to_string(i));
+    EXPECT_EQ(watch.Wait(60s), 0) << ReadFile(dir_ / "watch.log");
+
+    fs::path out = dir_ / "frames";
+    CliResult fetch = Cli({"fetch", job_id, "-o", out.string(), "--coordinator", address});
+    ASSERT_EQ(fetch.code, 0) << fetch.err;
+    ExpectSameImage(RenderLocal(args), out / "staged.0000.exr");
+}
+
+// `tessera farm` takes the same render options as `tessera render`: two frames of an
+// irradiance-cache animation, each planned and merged on its own.
+TEST_F(FarmTest, FarmCommandRendersStagedFrames) {
+    const std::vector<std::string> args = Concat(kStagedSmall, kIrradianceCache);
+    fs::path out = dir_ / "frames";
+    CliResult farm =
+        Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
+                    "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string()},
+                   args),
+            120s);
+    ASSERT_EQ(farm.code, 0) << farm.err;
+    ExpectSameImage(RenderLocal(args, 0), out / "cornell-box.0000.exr");
+    ExpectSameImage(RenderLocal(args, 1), out / "cornell-box.0001.exr");
+}
+
+// A worker killed while it holds a task of an irradiance pass: its lease expires, the
+// task runs elsewhere, and the merged cache and the image are the same.
+TEST_F(FarmTest, WorkerKilledMidStageDoesNotChangeTheImage) {
+    int port = StartCoordinator("state", 0, 1500);
+    ASSERT_GT(port, 0);
+    Process& doomed = StartWorker(port, "doomed");
+    StartWorker(port, "survivor");
+    Stubs s(port);
+    const std::vector<std::string> args = Concat(kStagedMedium, kPhotonIc);
+    std::string job_id = SubmitCornell(s, args);
+    v1::JobStatus status;
+    // Both workers (one thread each) at work in the middle of the second pass.
+    ASSERT_TRUE(PollJob(
+        s, job_id,
+        [](const v1::JobStatus& j) {
+            const v1::FrameStatus& f = j.frames(0);
+            return f.stage() == "irradiance-2" && f.stage_done() >= 1 &&
+                   f.stage_done() < f.stage_total() - 2 && j.leases_granted() - j.tasks_done() >= 2;
+        },
+        60s, &status))
+        << status.ShortDebugString();
+    doomed.Kill(SIGKILL);
+    std::printf("killed a worker at %s %d/%d\n", status.frames(0).stage().c_str(),
+                status.frames(0).stage_done(), status.frames(0).stage_total());
+    ASSERT_TRUE(WaitDone(s, job_id, &status));
+    EXPECT_GE(status.leases_granted(), status.tasks_total());
+    ExpectSameImage(RenderLocal(args), Download(s, job_id, 0));
+}
+
+// The coordinator killed right after it merged the photon maps: the restarted one
+// keeps the merged maps (durable, recorded with the release of the next stage), does
+// not shoot the photons again, and finishes the same image.
+TEST_F(FarmTest, CoordinatorKilledBetweenStagesKeepsTheMergedStages) {
+    Process* coordinator = nullptr;
+    int port = StartCoordinator("state", 0, 1500, &coordinator);
+    ASSERT_GT(port, 0);
+    constexpr int kWorkers = 2;
+    for (int i = 1; i <= kWorkers; ++i) StartWorker(port, "w" + std::to_string(i));
+    const std::vector<std::string> args = Concat(kStagedMedium, kPhotonIc);
+    std::string job_id;
+    v1::JobStatus before;
+    {
+        Stubs s(port);
+        job_id = SubmitCornell(s, args);
+        ASSERT_TRUE(PollJob(
+            s, job_id,
+            [](const v1::JobStatus& j) {
+                const std::string& stage = j.frames(0).stage();
+                return !stage.empty() && stage != "photons";
+            },
+            60s, &before))
+            << before.ShortDebugString();
+    }
+    coordinator->Kill(SIGKILL);
+    ASSERT_NE(before.frames(0).stage(), "render") << "the kill came too late to test anything";
+    ASSERT_EQ(StartCoordinator("state", port, 1500), port);
+    Stubs s(port);
+    v1::JobStatus after;
+    ASSERT_TRUE(PollJob(
+        s, job_id, [](const v1::JobStatus&) { return true; }, 10s, &after));
+    EXPECT_NE(after.frames(0).stage(), "photons") << "the merged photon maps were lost";
+    EXPECT_GE(after.tasks_done(), before.tasks_done());
+    ASSERT_TRUE(WaitDone(s, job_id, &after));
+    std::printf("killed at %s %d/%d; tasks %d, leases granted %lld\n",
+                before.frames(0).stage().c_str(), before.frames(0).stage_done(),
+                before.frames(0).stage_total(), after.tasks_total(),
+                static_cast<long long>(after.leases_granted()));
+    // Only the tasks in flight at the kill may run again (one per worker thread, and
+    // perhaps once more each if the restart outlived a lease): no batch nor pass again.
+    EXPECT_LE(after.leases_granted(), after.tasks_total() + 2 * kWorkers);
+    ExpectSameImage(RenderLocal(args), Download(s, job_id, 0));
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // Scheduler tests, no sockets and no real time: leases and their order, expiry under a
 // fake clock, fencing of stale leases, retries that fail a job with the worker's
-// message, cancellation, lease counting, and state surviving a reopen of the database.
+// message, cancellation, lease counting, state surviving a reopen of the database, and
+// multi-stage plans: later stages wait for the merges of what they read.
 
 #include "scheduler.h"
 
@@ -10,6 +11,7 @@
 
 #include <filesystem>
 #include <set>
+#include <tuple>
 
 #include "errors.h"
 
@@ -35,17 +37,23 @@ struct RecordingListener final : SchedulerListener {
     void OnJobChanged(const std::string& job, const std::string& message) override {
         changes.push_back(job + ": " + message);
     }
+    void OnStageReady(const std::string& job, int frame, int stage) override {
+        stages_ready.emplace_back(job, frame, stage);
+    }
     void OnFrameReady(const std::string& job, int frame) override {
         ready.emplace_back(job, frame);
     }
     int work = 0;
     std::vector<std::string> changes;
+    std::vector<std::tuple<std::string, int, int>> stages_ready;
     std::vector<std::pair<std::string, int>> ready;
 };
 
-// A job of `frames` frames, each of width/32 x height/32 tiles of 32 pixels.
+// A job of `frames` frames, each of width/32 x height/32 tiles of 32 pixels; `staged`
+// changes the path integrator for these stages: photons (3 batches), irradiance-1,
+// irradiance-2 (one task per tile each), render.
 NewJob MakeJob(const std::string& name, int priority, int frames = 1, int width = 64,
-               int height = 32) {
+               int height = 32, bool staged = false) {
     NewJob job;
     job.name = name;
     job.priority = priority;
@@ -63,9 +71,23 @@ NewJob MakeJob(const std::string& name, int priority, int frames = 1, int width 
     job.settings.scene_name = "scene.json";
     job.frame_start = 1;
     job.frame_end = frames;
-    job.tasks_per_frame = static_cast<int>(MakeTiles({width, height}, 32).size());
+    RenderSettings settings;
+    settings.integrator = staged ? "photon" : "path";
+    settings.spp = 4;
+    settings.tile_size = 32;
+    settings.resolution = {width, height};
+    settings.photon.batches = 3;
+    settings.irradiance.enabled = true;
+    settings.irradiance.passes = 2;
+    job.render_settings = EncodeRenderSettings(settings);
     return job;
 }
+
+NewJob MakeStagedJob(const std::string& name, int frames = 1) {
+    return MakeJob(name, 0, frames, 64, 32, true);
+}
+
+std::string Hash(char c) { return std::string(64, c); }
 
 #define EXPECT_ERROR(statement, code, text)                                             \
     do {                                                                                \
@@ -409,6 +431,186 @@ TEST_F(SchedulerTest, ChangesAreReportedToTheListener) {
     ASSERT_FALSE(listener_.changes.empty());
     EXPECT_NE(listener_.changes[0].find("failed on alpha: boom"), std::string::npos)
         << listener_.changes[0];
+}
+
+// photons (3) -> irradiance-1 (2) -> irradiance-2 (2) -> render (2): a stage is leased
+// only once what it reads is merged, with those artifacts as its inputs.
+TEST_F(SchedulerTest, LaterStagesAreLeasedOnlyAfterTheirInputsAreMerged) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged"));
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(st.tasks_total(), 9);
+    EXPECT_EQ(st.frames(0).stage(), "photons");
+    EXPECT_EQ(st.frames(0).stage_total(), 3);
+
+    // Only the photon batches are leasable, in order, with no inputs.
+    std::vector<LeasedTask> photons;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) photons.push_back(*t);
+    ASSERT_EQ(photons.size(), 3u);
+    for (int i = 0; i < 3; ++i) {
+        EXPECT_EQ(photons[i].stage, "photons");
+        EXPECT_EQ(photons[i].task_index, i);
+        EXPECT_TRUE(photons[i].inputs.empty());
+    }
+    // Completed in reverse order: the merge still gets them in task order.
+    for (int i : {2, 0, 1}) S().Complete(w, photons[i].task_id, photons[i].lease_id, Hash('a' + i));
+    EXPECT_FALSE(S().TryLease(w).has_value()) << "irradiance-1 leased before photons merged";
+    ASSERT_EQ(listener_.stages_ready.size(), 1u);
+    EXPECT_EQ(listener_.stages_ready[0], std::make_tuple(job, 1, 0));
+    EXPECT_TRUE(listener_.ready.empty());
+    st = S().GetJob(job);
+    EXPECT_EQ(st.frames(0).stage(), "photons");  // done, but not merged yet
+    EXPECT_EQ(st.frames(0).stage_done(), 3);
+
+    StageMergeInput merge = S().GetMergeInput(job, 1, 0);
+    EXPECT_TRUE(merge.ready);
+    EXPECT_FALSE(merge.merged);
+    EXPECT_TRUE(merge.base_hash.empty());
+    ASSERT_EQ(merge.results.size(), 3u);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(merge.results[i], std::make_pair(i, Hash('a' + i)));
+    const int work = listener_.work;
+    S().StageMerged(job, 1, 0, Hash('p'), 1234);
+    EXPECT_GT(listener_.work, work);
+    st = S().GetJob(job);
+    EXPECT_EQ(st.frames(0).stage(), "irradiance-1");
+    EXPECT_EQ(st.frames(0).stage_label(), "irradiance pass 1/2");
+    EXPECT_EQ(st.frames(0).stage_total(), 2);
+
+    // Pass 1 reads the photon maps; pass 2 waits for pass 1.
+    std::vector<LeasedTask> pass1;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) pass1.push_back(*t);
+    ASSERT_EQ(pass1.size(), 2u);
+    EXPECT_EQ(pass1[0].stage, "irradiance-1");
+    ASSERT_EQ(pass1[0].inputs.size(), 1u);
+    EXPECT_EQ(pass1[0].inputs[0].stage, "photons");
+    EXPECT_EQ(pass1[0].inputs[0].hash, Hash('p'));
+    EXPECT_EQ(pass1[0].inputs[0].size, 1234u);
+    for (const LeasedTask& t : pass1) S().Complete(w, t.task_id, t.lease_id, Hash('i'));
+    S().StageMerged(job, 1, 1, Hash('1'), 10);
+
+    std::vector<LeasedTask> pass2;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) pass2.push_back(*t);
+    ASSERT_EQ(pass2.size(), 2u);
+    EXPECT_EQ(pass2[1].stage, "irradiance-2");
+    EXPECT_EQ(pass2[1].task_index, 1);
+    ASSERT_EQ(pass2[1].inputs.size(), 2u);
+    EXPECT_EQ(pass2[1].inputs[1].stage, "irradiance-1");
+    for (const LeasedTask& t : pass2) S().Complete(w, t.task_id, t.lease_id, Hash('j'));
+    EXPECT_EQ(S().GetMergeInput(job, 1, 2).base_hash, Hash('1'));  // pass 2 extends pass 1
+    S().StageMerged(job, 1, 2, Hash('2'), 20);
+    // A merge recorded twice (a restart in between) changes nothing.
+    S().StageMerged(job, 1, 2, Hash('x'), 30);
+
+    std::vector<LeasedTask> render;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) render.push_back(*t);
+    ASSERT_EQ(render.size(), 2u);
+    EXPECT_EQ(render[0].stage, "render");
+    ASSERT_EQ(render[0].inputs.size(), 2u);
+    EXPECT_EQ(render[0].inputs[0].hash, Hash('p'));
+    EXPECT_EQ(render[0].inputs[1].hash, Hash('2'));
+    for (const LeasedTask& t : render) S().Complete(w, t.task_id, t.lease_id, Hash('r'));
+    ASSERT_EQ(listener_.ready.size(), 1u);
+    EXPECT_EQ(listener_.stages_ready.size(), 3u);
+    FrameAssemblyInput in = S().GetAssemblyInput(job, 1);
+    EXPECT_EQ(in.render_stage, 3);
+    ASSERT_EQ(in.results.size(), 2u);
+    EXPECT_EQ(in.results[1], std::make_pair(1, Hash('r')));
+    EXPECT_EQ(in.settings.integrator, "photon");
+    st = S().GetJob(job);
+    EXPECT_EQ(st.tasks_done(), 9);
+    EXPECT_EQ(st.frames(0).stage(), "render");
+    EXPECT_EQ(st.frames(0).stage_done(), 2);
+}
+
+// Frames are independent: frame 2's photons run while frame 1's later stages wait.
+TEST_F(SchedulerTest, EachFrameWaitsForItsOwnMerges) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged", 2));
+    std::vector<LeasedTask> leased;
+    while (std::optional<LeasedTask> t = S().TryLease(w)) leased.push_back(*t);
+    ASSERT_EQ(leased.size(), 6u);
+    EXPECT_EQ(leased[3].frame, 2);
+    EXPECT_EQ(leased[3].stage, "photons");
+    for (const LeasedTask& t : leased) S().Complete(w, t.task_id, t.lease_id, Hash('a'));
+    S().StageMerged(job, 2, 0, Hash('p'), 1);
+    LeasedTask next = Lease(w);
+    EXPECT_EQ(next.frame, 2);
+    EXPECT_EQ(next.stage, "irradiance-1");
+}
+
+// Killed after the last photon batch completed and before the merge was recorded: the
+// stage is found again at start-up, and merged work is not merged twice.
+TEST_F(SchedulerTest, RestartBetweenCompletionAndMergeFindsTheMergeAgain) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged"));
+    while (std::optional<LeasedTask> t = S().TryLease(w))
+        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+    Open();
+    auto awaiting = S().StagesAwaitingMerge();
+    ASSERT_EQ(awaiting.size(), 1u);
+    EXPECT_EQ(awaiting[0], std::make_tuple(job, 1, 0));
+    EXPECT_TRUE(S().FramesAwaitingAssembly().empty());
+    EXPECT_FALSE(S().TryLease(w).has_value());
+    S().StageMerged(job, 1, 0, Hash('p'), 99);
+    Open();
+    EXPECT_TRUE(S().StagesAwaitingMerge().empty());
+    LeasedTask t = Lease(w);
+    EXPECT_EQ(t.stage, "irradiance-1");
+    ASSERT_EQ(t.inputs.size(), 1u);
+    EXPECT_EQ(t.inputs[0].hash, Hash('p'));
+    EXPECT_TRUE(S().GetMergeInput(job, 1, 0).merged);
+}
+
+// A result found unreadable at the merge sends its task back; the stage is ready (and
+// merged) again only once it is done again.
+TEST_F(SchedulerTest, RequeuedTaskOfAnArtifactStageDelaysItsMerge) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged"));
+    while (std::optional<LeasedTask> t = S().TryLease(w))
+        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+    StageMergeInput in = S().GetMergeInput(job, 1, 0);
+    S().RequeueDoneTasks(job, 1, 0, {{1, in.completions[1]}});
+    EXPECT_FALSE(S().GetMergeInput(job, 1, 0).ready);
+    EXPECT_TRUE(S().StagesAwaitingMerge().empty());
+    LeasedTask again = Lease(w);
+    EXPECT_EQ(again.stage, "photons");
+    EXPECT_EQ(again.task_index, 1);
+    EXPECT_EQ(again.attempt, 2);
+    EXPECT_FALSE(S().TryLease(w).has_value());
+    listener_.stages_ready.clear();
+    S().Complete(w, again.task_id, again.lease_id, Hash('b'));
+    EXPECT_EQ(listener_.stages_ready.size(), 1u);
+    EXPECT_EQ(S().GetMergeInput(job, 1, 0).results[1].second, Hash('b'));
+}
+
+TEST_F(SchedulerTest, CancelledJobReleasesNothingOnALateMerge) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged"));
+    while (std::optional<LeasedTask> t = S().TryLease(w))
+        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+    S().Cancel(job);
+    EXPECT_FALSE(S().GetMergeInput(job, 1, 0).job_running);
+    S().StageMerged(job, 1, 0, Hash('p'), 1);
+    EXPECT_FALSE(S().TryLease(w).has_value());
+}
+
+// State from a coordinator without stored settings cannot be planned: refused with a
+// message that says what to do, not misread.
+TEST_F(SchedulerTest, StateOfAnOlderSchemaIsRefusedClearly) {
+    scheduler_.reset();
+    fs::remove(DbPath());
+    {
+        SqliteDb old(DbPath());
+        old.Exec("CREATE TABLE jobs(id INTEGER PRIMARY KEY, name TEXT NOT NULL)");
+    }
+    try {
+        Open();
+        ADD_FAILURE() << "an old database was opened";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("schema version 0"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("fresh --state directory"), std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace

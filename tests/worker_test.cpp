@@ -1,15 +1,19 @@
 // The worker's local caches: blobs by hash, bundles rebuilt from them, scenes loaded
-// once per job, and tiles rendered through the cache bit-identical to a direct render.
+// once per job, artifacts decoded once per frame, and tiles rendered through the cache
+// bit-identical to a direct render.
 // No network: blobs come from an in-memory map.
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "backoff.h"
 #include "bundle.h"
@@ -293,6 +297,80 @@ TEST_F(WorkerCacheTest, BadScenesFailWithTheStepAndAreNotCached) {
     v1::JobSpec bad_option = SceneSpec("furnace/scene.json");
     bad_option.mutable_options()->set_sampler("nonsense");
     EXPECT_THROW(scenes.Renderer("opt", bad_option, 0), std::runtime_error);
+}
+
+// Decoded artifacts (photon maps with their kd-trees) are built once per worker and
+// frame and shared by concurrent tasks; a failed load is not kept; they go with the
+// frame's renderer.
+TEST_F(WorkerCacheTest, ArtifactsAreLoadedOncePerFrameAndShared) {
+    BlobCache blobs(dir_ / "blobs", store_.Fetcher());
+    SceneCache scenes(dir_ / "jobs", blobs, 2, 2);
+    v1::JobSpec spec = SceneSpec("cornell-box/scene.json");
+    RenderOverrides o = FromProto(spec.options());
+    o.integrator = "photon";
+    o.photons_global = 2000;
+    o.photons_caustic = 0;
+    o.photon_batches = 2;
+    *spec.mutable_options() = ToProto(o);
+    std::shared_ptr<const FrameRenderer> renderer = scenes.Renderer("job-1", spec, 0);
+    const RenderPlan& plan = renderer->Plan();
+    ASSERT_EQ(plan.stages.size(), 2u);
+    ScratchBuffer arena;
+    std::vector<std::string> batches;
+    for (int i = 0; i < plan.stages[0].num_tasks; ++i)
+        batches.push_back(renderer->RunTask(0, i, {}, arena));
+    const std::string merged = MergeStageResults(plan, 0, "", batches);
+    const std::string hash = Sha256Hex(merged);
+
+    std::atomic<int> reads{0};
+    auto bytes = [&] {
+        ++reads;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        return merged;
+    };
+    std::vector<std::shared_ptr<const Artifact>> got(4);
+    std::vector<std::thread> threads;
+    for (int i = 0; i < 4; ++i)
+        threads.emplace_back(
+            [&, i] { got[i] = scenes.GetArtifact("job-1", spec, 0, 0, hash, bytes); });
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(reads.load(), 1);
+    for (const auto& a : got) EXPECT_EQ(a, got[0]);
+    ASSERT_NE(dynamic_cast<const PhotonMapsArtifact*>(got[0].get()), nullptr);
+    EXPECT_EQ(scenes.ArtifactsHeld("job-1", 0), 1u);
+
+    // The render stage's tiles through the shared artifact equal a local renderer's.
+    ArtifactSet artifacts(plan.stages.size());
+    artifacts[0] = got[0];
+    o.frame = 0;
+    LoadedScene local =
+        LoadSceneFile(std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json", o);
+    FrameRenderer reference(*local.scene, local.settings);
+    ArtifactSet local_artifacts(plan.stages.size());
+    local_artifacts[0] = reference.LoadArtifact(0, merged);
+    ScratchBuffer b;
+    EXPECT_EQ(renderer->RunTask(1, 3, artifacts, arena),
+              reference.RunTask(1, 3, local_artifacts, b));
+
+    // Another frame loads its own; a failure is rethrown and not kept.
+    EXPECT_THROW(scenes.GetArtifact("job-1", spec, 1, 0, hash,
+                                    []() -> std::string { throw std::runtime_error("gone"); }),
+                 std::runtime_error);
+    EXPECT_EQ(scenes.ArtifactsHeld("job-1", 1), 0u);
+    try {
+        scenes.GetArtifact("job-1", spec, 1, 0, hash, [] { return std::string("junk"); });
+        ADD_FAILURE() << "junk decoded as photon maps";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("loading the photons artifact failed"),
+                  std::string::npos)
+            << e.what();
+    }
+    EXPECT_NE(scenes.GetArtifact("job-1", spec, 1, 0, hash, bytes), got[0]);
+    EXPECT_EQ(reads.load(), 2);
+    // Frames beyond the cache's two drop their artifacts with their renderers.
+    scenes.Renderer("job-1", spec, 2);
+    EXPECT_EQ(scenes.ArtifactsHeld("job-1", 0), 0u);
+    EXPECT_EQ(scenes.ArtifactsHeld("job-1", 1), 1u);
 }
 
 TEST(BackoffTest, DoublesWithJitterUpToTheMaximum) {

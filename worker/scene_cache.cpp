@@ -23,13 +23,21 @@ constexpr int64_t kMaxTiles = int64_t(1) << 22;
 
 }  // namespace
 
+// A frame's renderer and the artifacts loaded for it, by (stage, blob hash).
+struct SceneCache::FrameEntry {
+    int frame = 0;
+    std::shared_ptr<const FrameRenderer> renderer;
+    std::map<std::pair<int, std::string>, std::shared_future<std::shared_ptr<const Artifact>>>
+        artifacts;
+};
+
 struct SceneCache::Job {
     LoadedScene loaded;
-    std::mutex mutex;
-    // Frame renderers, most recently used first. They refer to `loaded.scene` and are
+    mutable std::mutex mutex;
+    // Frames, most recently used first. Their renderers refer to `loaded.scene` and are
     // declared after it, so they go first. They must not own the Job: that would be a
     // cycle, and a dropped job would never be freed.
-    std::list<std::pair<int, std::shared_ptr<const FrameRenderer>>> frames;
+    std::list<FrameEntry> frames;
 };
 
 namespace {
@@ -82,24 +90,99 @@ std::shared_ptr<const FrameRenderer> SceneCache::Renderer(const std::string& job
     handle->job = GetJob(job_id, spec);
     Job& job = *handle->job;
     std::lock_guard lock(job.mutex);
-    for (auto it = job.frames.begin(); it != job.frames.end(); ++it) {
-        if (it->first == frame) {
-            job.frames.splice(job.frames.begin(), job.frames, it);
-            handle->renderer = it->second;
-            break;
-        }
-    }
-    if (!handle->renderer) {
-        try {
-            handle->renderer = MakeFrameRenderer(job, frame);
-        } catch (const std::exception& e) {
-            throw std::runtime_error(
-                fmt::format("setting up frame {} failed: {}", frame, e.what()));
-        }
-        job.frames.emplace_front(frame, handle->renderer);
-        if (job.frames.size() > max_frames_) job.frames.pop_back();
-    }
+    handle->renderer = FrameLocked(job, frame, max_frames_).renderer;
     return std::shared_ptr<const FrameRenderer>(handle, handle->renderer.get());
+}
+
+SceneCache::FrameEntry& SceneCache::FrameLocked(Job& job, int frame, size_t max_frames) {
+    for (auto it = job.frames.begin(); it != job.frames.end(); ++it) {
+        if (it->frame == frame) {
+            job.frames.splice(job.frames.begin(), job.frames, it);
+            return job.frames.front();
+        }
+    }
+    FrameEntry entry;
+    entry.frame = frame;
+    try {
+        entry.renderer = MakeFrameRenderer(job, frame);
+    } catch (const std::exception& e) {
+        throw std::runtime_error(fmt::format("setting up frame {} failed: {}", frame, e.what()));
+    }
+    job.frames.push_front(std::move(entry));
+    // Tasks in flight keep what they hold of a dropped frame: shared pointers.
+    if (job.frames.size() > max_frames) job.frames.pop_back();
+    return job.frames.front();
+}
+
+std::shared_ptr<const Artifact> SceneCache::GetArtifact(const std::string& job_id,
+                                                        const v1::JobSpec& spec, int frame,
+                                                        int stage, const std::string& hash,
+                                                        const std::function<std::string()>& bytes) {
+    if (frame < 0)
+        throw std::runtime_error(fmt::format("invalid task: frame {} is negative", frame));
+    std::shared_ptr<Job> job = GetJob(job_id, spec);
+    std::shared_ptr<const FrameRenderer> renderer;
+    std::promise<std::shared_ptr<const Artifact>> promise;
+    const std::pair<int, std::string> key(stage, hash);
+    {
+        std::unique_lock lock(job->mutex);
+        FrameEntry& entry = FrameLocked(*job, frame, max_frames_);
+        auto it = entry.artifacts.find(key);
+        if (it != entry.artifacts.end()) {
+            std::shared_future<std::shared_ptr<const Artifact>> loading = it->second;
+            lock.unlock();
+            return loading.get();  // waits for a load in progress; rethrows its error
+        }
+        entry.artifacts.emplace(key, promise.get_future().share());
+        renderer = entry.renderer;
+    }
+    // This call loads it; calls for it that come meanwhile wait on the future.
+    try {
+        const auto start = std::chrono::steady_clock::now();
+        std::string data = bytes();
+        std::shared_ptr<const Artifact> artifact;
+        try {
+            artifact = renderer->LoadArtifact(stage, data);
+        } catch (const std::exception& e) {
+            throw std::runtime_error(fmt::format("loading the {} artifact failed: {}",
+                                                 renderer->Plan().stages.at(stage).name, e.what()));
+        }
+        spdlog::info(
+            "job {} frame {}: loaded the {} artifact ({} bytes) in {:.0f} ms", job_id, frame,
+            renderer->Plan().stages.at(stage).name, data.size(),
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count());
+        promise.set_value(artifact);
+        return artifact;
+    } catch (...) {
+        promise.set_exception(std::current_exception());
+        std::lock_guard lock(job->mutex);
+        // Not another load's entry of the same key (the frame dropped and made anew):
+        // that one is still loading.
+        for (FrameEntry& entry : job->frames) {
+            auto it = entry.artifacts.find(key);
+            if (entry.frame == frame && it != entry.artifacts.end() &&
+                it->second.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
+                entry.artifacts.erase(it);
+        }
+        throw;
+    }
+}
+
+size_t SceneCache::ArtifactsHeld(const std::string& job_id, int frame) const {
+    std::shared_ptr<Job> job;
+    {
+        std::lock_guard lock(mutex_);
+        for (const Slot& s : slots_)
+            if (s.job_id == job_id &&
+                s.job.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
+                job = s.job.get();
+    }
+    if (!job) return 0;
+    std::lock_guard lock(job->mutex);
+    for (const FrameEntry& entry : job->frames)
+        if (entry.frame == frame) return entry.artifacts.size();
+    return 0;
 }
 
 std::vector<std::string> SceneCache::Jobs() const {

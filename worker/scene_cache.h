@@ -1,14 +1,18 @@
 #pragma once
 
 // Loaded scenes, kept across tasks: a worker fetches a job's bundle, loads its scene
-// and builds the BVH once, then renders every tile of every frame of that job from
-// it. The most recently used jobs stay loaded; older ones are dropped with their
-// bundle folders.
+// and builds the BVH once, then runs every task of every frame of that job from it.
+// Beside each frame's renderer it keeps the frame's decoded artifacts (photon maps with
+// their kd-trees, irradiance caches with their octrees): built once per worker and
+// frame, shared by every task that reads them. The most recently used jobs stay loaded;
+// older ones are dropped with their bundle folders, frames and artifacts.
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <list>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -38,6 +42,18 @@ class SceneCache {
     std::shared_ptr<const FrameRenderer> Renderer(const std::string& job_id,
                                                   const v1::JobSpec& spec, int frame);
 
+    // The decoded artifact of stage `stage` of `frame` whose merged bytes are blob `hash`
+    // (`bytes` fetches them). The first call for a (job, frame, stage, hash) fetches and
+    // decodes it (FrameRenderer::LoadArtifact); concurrent calls wait for that load, later
+    // ones share the result. Throws what the fetch throws, or std::runtime_error
+    // "loading the <stage> artifact failed: ..."; a failed load is not cached. Thread-safe.
+    std::shared_ptr<const Artifact> GetArtifact(const std::string& job_id, const v1::JobSpec& spec,
+                                                int frame, int stage, const std::string& hash,
+                                                const std::function<std::string()>& bytes);
+
+    // Artifacts held for `frame` of the job (loaded or loading), for tests.
+    size_t ArtifactsHeld(const std::string& job_id, int frame) const;
+
     // Ids of the jobs held (loaded or loading), most recently used first.
     std::vector<std::string> Jobs() const;
 
@@ -52,6 +68,9 @@ class SceneCache {
     };
 
     std::shared_ptr<Job> GetJob(const std::string& job_id, const v1::JobSpec& spec);
+    // With job.mutex held: the frame's entry, created (and the oldest dropped) if needed.
+    struct FrameEntry;
+    static FrameEntry& FrameLocked(Job& job, int frame, size_t max_frames);
     std::shared_ptr<Job> LoadJob(const std::string& job_id, const v1::JobSpec& spec) const;
     void EvictLocked();
 

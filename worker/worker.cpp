@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -58,8 +60,16 @@ void SetDeadline(grpc::ClientContext& ctx, std::chrono::duration<Rep, Period> d)
 }
 
 std::string Describe(const v1::Task& t) {
-    return fmt::format("task {} (job {}, frame {}, tile {}, attempt {})", t.task_id(), t.job_id(),
-                       t.frame(), t.task_index(), t.attempt());
+    return fmt::format("task {} (job {}, frame {}, {} {}, attempt {})", t.task_id(), t.job_id(),
+                       t.frame(), t.stage(), t.task_index(), t.attempt());
+}
+
+std::string ReadWholeFile(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open " + path.string());
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw std::runtime_error("cannot read " + path.string());
+    return bytes;
 }
 
 long long Ms(Clock::duration d) { return std::chrono::duration_cast<milliseconds>(d).count(); }
@@ -339,43 +349,91 @@ bool Worker::Dropped(const Active& task, const char* when) {
 
 void Worker::RunTask(const std::shared_ptr<Active>& task, ScratchBuffer& arena) {
     const v1::Task& t = task->task;
-    if (t.stage() != kRenderStage) {
-        Fail(*task, fmt::format("invalid task: stage '{}' is not supported", t.stage()));
-        return;
-    }
     std::shared_ptr<const FrameRenderer> renderer;
+    int stage = -1;
+    ArtifactSet artifacts;
     try {
-        renderer = PrepareWithRetry(*task);  // its messages name the step that failed
+        // Their messages name the step that failed.
+        renderer = WithFetchRetry(
+            *task, [&] { return scene_cache_->Renderer(t.job_id(), t.spec(), t.frame()); });
+        stage = StageOf(*renderer, t);
+        artifacts = LoadInputs(*task, *renderer, stage);
     } catch (const std::exception& e) {
         Fail(*task, e.what());
         return;
     } catch (...) {
-        Fail(*task, "preparing the scene failed: unknown error");
+        Fail(*task, "preparing the task failed: unknown error");
         return;
     }
     if (Dropped(*task, "before rendering")) return;
     std::string result;
     try {
         arena.Reset();
-        result = EncodeTileResult(ExecuteTileTask(*renderer, t.task_index(), arena));
+        result = renderer->RunTask(stage, t.task_index(), artifacts, arena);
     } catch (const std::exception& e) {
-        Fail(*task, fmt::format("rendering tile {} failed: {}", t.task_index(), e.what()));
+        Fail(*task,
+             fmt::format("running {} task {} failed: {}", t.stage(), t.task_index(), e.what()));
         return;
     } catch (...) {
-        Fail(*task, fmt::format("rendering tile {} failed: unknown error", t.task_index()));
+        Fail(*task,
+             fmt::format("running {} task {} failed: unknown error", t.stage(), t.task_index()));
         return;
     }
     task->progress = 1;
     Complete(*task, result);
 }
 
-std::shared_ptr<const FrameRenderer> Worker::PrepareWithRetry(const Active& task) {
+int Worker::StageOf(const FrameRenderer& renderer, const v1::Task& t) {
+    const RenderPlan& plan = renderer.Plan();
+    const int stage = plan.StageIndex(t.stage());
+    if (stage < 0) {
+        std::string names;
+        for (const StagePlan& s : plan.stages) names += (names.empty() ? "" : ", ") + s.name;
+        throw std::runtime_error(fmt::format(
+            "invalid task: stage '{}' is not in the frame's render plan (its stages: {})",
+            t.stage(), names));
+    }
+    return stage;
+}
+
+ArtifactSet Worker::LoadInputs(const Active& task, const FrameRenderer& renderer, int stage) {
+    const v1::Task& t = task.task;
+    const RenderPlan& plan = renderer.Plan();
+    ArtifactSet artifacts(plan.stages.size());
+    for (const v1::TaskInput& input : t.inputs()) {
+        const int s = plan.StageIndex(input.stage());
+        if (s < 0 || !plan.stages[s].produces_artifact)
+            throw std::runtime_error(fmt::format(
+                "invalid task: input '{}' names no artifact stage of the plan", input.stage()));
+        artifacts[s] = WithFetchRetry(task, [&] {
+            return scene_cache_->GetArtifact(t.job_id(), t.spec(), t.frame(), s, input.hash(), [&] {
+                try {
+                    return ReadWholeFile(blob_cache_->Ensure(input.hash(), input.size()));
+                } catch (const BlobFetchError& e) {
+                    throw BlobFetchError(
+                        fmt::format("fetching the {} artifact failed: {}", input.stage(), e.what()),
+                        e.Transient());
+                }
+            });
+        });
+    }
+    for (int r : plan.stages[stage].reads)
+        if (!artifacts[r])
+            throw std::runtime_error(
+                fmt::format("invalid task: stage {} reads the {} artifact, which the task does "
+                            "not name",
+                            t.stage(), plan.stages[r].name));
+    return artifacts;
+}
+
+template <typename F>
+auto Worker::WithFetchRetry(const Active& task, const F& step) -> decltype(step()) {
     const v1::Task& t = task.task;
     Backoff backoff;
     const Clock::time_point start = Clock::now();
     while (true) {
         try {
-            return scene_cache_->Renderer(t.job_id(), t.spec(), t.frame());
+            return step();
         } catch (const BlobFetchError& e) {
             // A coordinator that is away is no fault of the task: wait for it rather than
             // spend one of the task's attempts.

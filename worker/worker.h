@@ -1,20 +1,23 @@
 #pragma once
 
-// The worker loop: register, lease tile tasks, render them with the engine, heartbeat
-// while they run, and complete them with their results (inline in CompleteTask up to
-// kMaxInlineResultBytes, else uploaded as a blob first).
+// The worker loop: register, lease tasks of any stage of a frame's render plan (photon
+// batches, irradiance passes, render tiles), run them with the engine, heartbeat while
+// they run, and complete them with their results (inline in CompleteTask up to
+// kMaxInlineResultBytes, else uploaded as a blob first). A task's inputs (the merged
+// artifacts of earlier stages) are fetched by hash and decoded once per worker and
+// frame (SceneCache::GetArtifact), then shared by every task that reads them.
 //
 // Concurrency model: one lease thread and `threads` render threads. The lease thread
 // holds at most one LeaseTask long poll at a time and asks for work only when a render
 // thread is idle, so the worker never sits on leased tasks it cannot start. Each render
-// thread runs one task at a time, start to finish (fetch bundle, render the tile with
-// its own ScratchBuffer, upload if large, complete); a tile is small, so tasks run side by side
-// rather than threads splitting a tile. A heartbeat thread reports every task in
-// flight (or, when idle, the worker itself) every heartbeat interval. Progress is 0
-// until the tile is rendered and 1 after: RenderTile reports nothing in between.
+// thread runs one task at a time, start to finish (fetch bundle and inputs, run the task
+// with its own ScratchBuffer, upload if large, complete); a task is small, so tasks run
+// side by side rather than threads splitting one. A heartbeat thread reports every task
+// in flight (or, when idle, the worker itself) every heartbeat interval. Progress is 0
+// until the task has run and 1 after: FrameRenderer::RunTask reports nothing between.
 //
-// Cancellation: FrameRenderer::RenderTile has no cancellation hook and rendering the
-// tile any other way could change its bits, so a tile that is rendering finishes; a
+// Cancellation: FrameRenderer::RunTask has no cancellation hook and running the task
+// any other way could change its bits, so a task that is running finishes; a
 // task whose lease a heartbeat reports invalid (or whose job is cancelled) is dropped at
 // the next step boundary: before rendering, before uploading and before completing. A
 // completion refused as stale (FAILED_PRECONDITION) is logged and dropped.
@@ -91,7 +94,14 @@ class Worker {
     grpc::Status Heartbeat(const std::shared_ptr<Active>& task);
 
     void RunTask(const std::shared_ptr<Active>& task, ScratchBuffer& arena);
-    std::shared_ptr<const FrameRenderer> PrepareWithRetry(const Active& task);
+    // The index of the task's stage in the frame's plan; throws for one not in it.
+    static int StageOf(const FrameRenderer& renderer, const v1::Task& task);
+    // The decoded artifacts the task's stage reads (fetched and decoded once per frame).
+    ArtifactSet LoadInputs(const Active& task, const FrameRenderer& renderer, int stage);
+    // Runs `step` again while it fails only because the blob store is unreachable (no
+    // fault of the task: it keeps its attempts), while KeepRetrying.
+    template <typename F>
+    auto WithFetchRetry(const Active& task, const F& step) -> decltype(step());
     void Complete(Active& task, const std::string& result);
     void Fail(Active& task, std::string message);
     // True (and logged) if the task was abandoned.

@@ -2,20 +2,37 @@
 
 #include <stdexcept>
 
+#include "integrator/gather.h"
 #include "integrator/path.h"
 
 namespace tessera {
 
 const char* const* IntegratorNames() {
-    static const char* const kNames[] = {"path", "direct", nullptr};
+    static const char* const kNames[] = {"path", "direct", "photon", "irradiance-cache", nullptr};
     return kNames;
 }
 
-std::unique_ptr<Integrator> MakeIntegrator(const std::string& name,
-                                           const IntegratorSettings& settings, const Scene& scene) {
-    if (name == "path") return std::make_unique<PathIntegrator>(scene, settings, false);
-    if (name == "direct") return std::make_unique<PathIntegrator>(scene, settings, true);
-    throw std::invalid_argument("unknown integrator '" + name + "' (known: path, direct)");
+bool UsesIrradianceCache(const RenderSettings& s) {
+    return s.integrator == "irradiance-cache" || (s.integrator == "photon" && s.irradiance.enabled);
+}
+
+bool UsesPhotonMaps(const RenderSettings& s) { return s.integrator == "photon"; }
+
+std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
+                                           const FrameInputs& inputs) {
+    const std::string& name = settings.integrator;
+    IntegratorSettings is{settings.max_depth, settings.rr_depth};
+    if (name == "path") return std::make_unique<PathIntegrator>(scene, is, false);
+    if (name == "direct") return std::make_unique<PathIntegrator>(scene, is, true);
+    if (name == "photon") {
+        if (!inputs.photons)
+            throw std::invalid_argument("the photon integrator needs the frame's photon maps");
+        return std::make_unique<GatherIntegrator>(scene, settings, inputs);
+    }
+    if (name == "irradiance-cache")
+        return std::make_unique<GatherIntegrator>(scene, settings, inputs);
+    throw std::invalid_argument("unknown integrator '" + name +
+                                "' (known: path, direct, photon, irradiance-cache)");
 }
 
 }  // namespace tessera

@@ -4,9 +4,12 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "core/arena.h"
 #include "film/film.h"
+#include "integrator/frame_inputs.h"
+#include "plan/render_settings.h"
 #include "sampler/sampler.h"
 #include "scene/scene.h"
 
@@ -17,20 +20,45 @@ struct IntegratorSettings {
     int rr_depth = 3;    // Russian roulette from this bounce on
 };
 
+// What one task keeps while it runs (an irradiance-caching integrator's records made by
+// this task); a task's samples see it in the task's own, fixed order.
+class IntegratorTaskState {
+  public:
+    virtual ~IntegratorTaskState() = default;
+};
+
 class Integrator {
   public:
     virtual ~Integrator() = default;
+    // Null for integrators that keep nothing per task.
+    virtual std::unique_ptr<IntegratorTaskState> NewTaskState() const { return nullptr; }
     // Draws every random number from `sampler` (already started at the pixel sample),
-    // and allocates BSDFs in `arena`.
-    virtual SampleValue Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena) const = 0;
+    // and allocates BSDFs in `arena`. `state` is the task's NewTaskState().
+    virtual SampleValue Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena,
+                           IntegratorTaskState* state) const = 0;
+    // Irradiance caching: makes sure that the cache (shared or the task's own) covers
+    // the point where `ray` first meets a diffuse surface.
+    virtual void PrepareIrradiance(const Ray& /*ray*/, Sampler& /*sampler*/,
+                                   ScratchBuffer& /*arena*/, IntegratorTaskState* /*state*/) const {
+    }
+    // The records this task created, in creation order.
+    virtual std::vector<IrradianceRecord> NewRecords(const IntegratorTaskState* /*state*/) const {
+        return {};
+    }
 };
 
-// Names: "path" (next-event estimation + MIS, the reference) and "direct" (emission
-// plus one bounce of direct light, with MIS; specular chains followed). Throws
-// std::invalid_argument for an unknown name.
-std::unique_ptr<Integrator> MakeIntegrator(const std::string& name,
-                                           const IntegratorSettings& settings, const Scene& scene);
+// Names: "path" (next-event estimation + MIS, the reference), "direct" (emission plus
+// one bounce of direct light, with MIS; specular chains followed), "photon" (Jensen's
+// photon mapping with final gathering; needs `inputs.photons`) and "irradiance-cache"
+// (path-traced direct light, indirect diffuse light from Ward's irradiance cache).
+// Throws std::invalid_argument for an unknown name or a missing input.
+std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
+                                           const FrameInputs& inputs = {});
 // The names MakeIntegrator accepts, for help texts and validation.
 const char* const* IntegratorNames();
+// Whether the integrator reads an irradiance cache (and so its plan has irradiance passes).
+bool UsesIrradianceCache(const RenderSettings& settings);
+// Whether the integrator reads photon maps.
+bool UsesPhotonMaps(const RenderSettings& settings);
 
 }  // namespace tessera

@@ -1,11 +1,24 @@
 #include "integrator/path.h"
 
 #include "core/sampling.h"
+#include "integrator/light_sampling.h"
 
 namespace tessera {
 
-SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler,
-                               ScratchBuffer& arena) const {
+SampleValue PathIntegrator::Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena,
+                               IntegratorTaskState*) const {
+    return Trace(ray, sampler, arena, false);
+}
+
+Rgb PathIntegrator::Radiance(const Ray& ray, Sampler& sampler, ScratchBuffer& arena,
+                             bool skip_first_emission, float* distance) const {
+    SampleValue v = Trace(ray, sampler, arena, skip_first_emission);
+    if (distance) *distance = v.depth > 0 ? v.depth : kInfinity;
+    return v.L;
+}
+
+SampleValue PathIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, ScratchBuffer& arena,
+                                  bool skip_first_emission) const {
     SampleValue out;
     Rgb L, beta(1);
     Ray ray = camera_ray;
@@ -14,24 +27,16 @@ SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler,
     float eta_scale = 1;      // undoes radiance scaling by refraction for Russian roulette
     LightSampleContext prev;  // the vertex `ray` left from
     bool emission_only = false;
-    const LightSampler& light_sampler = scene_.GetLightSampler();
 
     for (int depth = 0;; ++depth) {
         SurfaceInteraction si;
         bool hit = scene_.Intersect(ray, &si);
         // Emission found by the ray: weighted against the light sampling that could
         // also have found it, unless the ray came from the camera or a specular lobe.
+        const EmissionContext emission{depth == 0 || specular_bounce, prev, bsdf_pdf};
         if (!hit) {
-            for (const Light* light : scene_.InfiniteLights()) {
-                Rgb Le = light->Le(ray.d);
-                if (Le.IsBlack()) continue;
-                if (depth == 0 || specular_bounce) {
-                    L += beta * Le;
-                } else {
-                    float light_pdf = light_sampler.Pmf(light) * light->PdfLi(prev, ray.d, {}, {});
-                    L += beta * Le * PowerHeuristic(1, bsdf_pdf, 1, light_pdf);
-                }
-            }
+            if (!(depth == 0 && skip_first_emission))
+                L += beta * EnvironmentEmission(scene_, ray, emission);
             break;
         }
         Vec3 wo = -ray.d;
@@ -39,17 +44,9 @@ SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler,
             out.normal = si.shading.n;
             out.depth = si.t;
         }
-        if (si.area_light) {
-            Rgb Le = si.area_light->L(si.p, si.ng, si.uv, wo);
-            if (!Le.IsBlack()) {
-                if (depth == 0 || specular_bounce) {
-                    L += beta * Le;
-                } else {
-                    float light_pdf = light_sampler.Pmf(si.area_light) *
-                                      si.area_light->PdfLi(prev, ray.d, si.p, si.ng);
-                    L += beta * Le * PowerHeuristic(1, bsdf_pdf, 1, light_pdf);
-                }
-            }
+        if (!(depth == 0 && skip_first_emission)) {
+            Rgb Le = SurfaceEmission(scene_, si, ray, emission);
+            if (!Le.IsBlack()) L += beta * Le;
         }
         if (emission_only || depth == settings_.max_depth || !si.material) break;
 
@@ -68,30 +65,8 @@ SampleValue PathIntegrator::Li(const Ray& camera_ray, Sampler& sampler,
 
         // Next-event estimation.
         bool non_specular = !bsdf->IsSpecular();
-        if (non_specular) {
-            float pick_pmf;
-            const Light* light = light_sampler.Sample(u_light_pick, &pick_pmf);
-            if (light) {
-                if (auto ls = light->SampleLi(ctx, u_light);
-                    ls && ls->pdf > 0 && !ls->L.IsBlack()) {
-                    Vec3 wi_local = si.shading.ToLocal(ls->wi);
-                    Rgb f = bsdf->Eval(wo_local, wi_local, TransportMode::kRadiance) *
-                            AbsDot(ls->wi, si.shading.n);
-                    if (!f.IsBlack()) {
-                        Vec3 origin = OffsetRayOrigin(si.p, si.ng, ls->wi);
-                        if (!scene_.Occluded(origin, ls->p_light)) {
-                            float light_pdf = pick_pmf * ls->pdf;
-                            float w = light->IsDelta()
-                                          ? 1.0f
-                                          : PowerHeuristic(1, light_pdf, 1,
-                                                           bsdf->Pdf(wo_local, wi_local,
-                                                                     TransportMode::kRadiance));
-                            L += beta * f * ls->L * (w / light_pdf);
-                        }
-                    }
-                }
-            }
-        }
+        if (non_specular)
+            L += beta * SampleLight(scene_, si, *bsdf, wo_local, u_light_pick, u_light, true);
 
         // Continue the path by sampling the BSDF.
         auto bs = bsdf->Sample(wo_local, u_lobe, u_bsdf, TransportMode::kRadiance);

@@ -1,13 +1,30 @@
 #include "plan/frame_renderer.h"
 
+#include <fmt/format.h>
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
 #include <stdexcept>
 
 #include "core/rng.h"
+#include "integrator/gather.h"
+#include "photon/photon_tracer.h"
+#include "plan/stage_results.h"
 
 namespace tessera {
+namespace {
+
+// Embree wants denormals flushed; setting it in every task keeps every render thread
+// alike, so results do not depend on which thread ran the task.
+void SetFloatingPointMode() {
+    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+}
+
+// Names the photon stage's streams apart from the pixel streams of the same seed.
+constexpr uint64_t kPhotonStreamSalt = 0x70686f746f6e73ull;
+
+}  // namespace
 
 FrameRenderer::FrameRenderer(const Scene& scene, const RenderSettings& settings)
     : scene_(scene), settings_(settings) {
@@ -15,22 +32,150 @@ FrameRenderer::FrameRenderer(const Scene& scene, const RenderSettings& settings)
     if (settings.spp < 1) throw std::invalid_argument("samples per pixel must be at least 1");
     if (settings.tile_size < 1) throw std::invalid_argument("tile size must be at least 1");
     if (settings.max_depth < 0) throw std::invalid_argument("max depth must not be negative");
+    bool known = false;
+    for (const char* const* n = IntegratorNames(); *n; ++n) known |= settings.integrator == *n;
+    if (!known)
+        throw std::invalid_argument("unknown integrator '" + settings.integrator +
+                                    "' (known: path, direct, photon, irradiance-cache)");
+    if (UsesPhotonMaps(settings)) {
+        const PhotonOptions& p = settings.photon;
+        if (p.global_photons < 0 || p.caustic_photons < 0)
+            throw std::invalid_argument("photon counts must not be negative");
+        if (p.global_lookup < 1 || p.caustic_lookup < 1 || p.gather_rays < 1)
+            throw std::invalid_argument("photon lookups and gather rays must be at least 1");
+    }
+    if (UsesIrradianceCache(settings)) {
+        const IrradianceOptions& ic = settings.irradiance;
+        if (!(ic.accuracy > 0)) throw std::invalid_argument("cache accuracy must be positive");
+        if (ic.hemisphere_samples < 4)
+            throw std::invalid_argument("the cache needs at least 4 hemisphere samples");
+    }
     resolution_ = scene.GetCamera().Resolution();
-    IntegratorSettings is{settings.max_depth, settings.rr_depth};
-    integrator_ = MakeIntegrator(settings.integrator, is, scene);
+    plan_ = MakeRenderPlan(resolution_, settings);
     filter_ = MakeFilter(settings.filter);
     // The frame number is part of every stream's key: frames of an animation are
     // independent, and a frame is the same whoever renders it.
     sampler_ = MakeSampler(settings.sampler, settings.spp, Hash(settings.seed, settings.frame));
-    tiles_ = MakeTiles(resolution_, settings.tile_size);
 }
 
-TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena) const {
-    // Embree wants denormals flushed; setting it here keeps every render thread alike,
-    // so results do not depend on which thread ran the tile.
-    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-    uint64_t rays_before = Scene::ThreadRayCount();
+FrameInputs FrameRenderer::Inputs(int stage, const ArtifactSet& artifacts) const {
+    FrameInputs in;
+    for (int r : plan_.stages[stage].reads) {
+        const Artifact* a = r < static_cast<int>(artifacts.size()) ? artifacts[r].get() : nullptr;
+        if (!a)
+            throw std::invalid_argument(fmt::format("stage {} needs the artifact of stage {}",
+                                                    plan_.stages[stage].name,
+                                                    plan_.stages[r].name));
+        if (plan_.stages[r].kind == StageKind::kPhotons)
+            in.photons = dynamic_cast<const PhotonMapsArtifact*>(a);
+        else if (plan_.stages[r].kind == StageKind::kIrradiance)
+            if (auto* ic = dynamic_cast<const IrradianceArtifact*>(a)) in.irradiance = &ic->cache;
+    }
+    return in;
+}
+
+std::shared_ptr<const Artifact> FrameRenderer::LoadArtifact(int stage,
+                                                            const std::string& bytes) const {
+    if (stage < 0 || stage >= static_cast<int>(plan_.stages.size()) ||
+        !plan_.stages[stage].produces_artifact)
+        throw std::invalid_argument(fmt::format("stage {} has no artifact", stage));
+    if (plan_.stages[stage].kind == StageKind::kPhotons) {
+        std::vector<Photon> global, caustic;
+        DecodePhotonMaps(bytes, &global, &caustic);
+        auto maps = std::make_shared<PhotonMapsArtifact>();
+        maps->global = PhotonMap(std::move(global));
+        maps->caustic = PhotonMap(std::move(caustic));
+        maps->irradiance =
+            PrecomputePhotonIrradiance(maps->global, settings_.photon.global_lookup,
+                                       GatherIntegrator::PhotonRadius(settings_, scene_.Bounds()));
+        return maps;
+    }
+    IrradianceCache cache(scene_.Bounds(),
+                          GatherIntegrator::CacheSettings(settings_, scene_.Bounds()));
+    for (const IrradianceRecord& r : DecodeIrradianceRecords(bytes)) cache.Add(r);
+    return std::make_shared<IrradianceArtifact>(std::move(cache));
+}
+
+std::string FrameRenderer::RunTask(int stage, int task_index, const ArtifactSet& artifacts,
+                                   ScratchBuffer& arena) const {
+    if (stage < 0 || stage >= static_cast<int>(plan_.stages.size()))
+        throw std::invalid_argument(fmt::format("stage {} does not exist", stage));
+    const StagePlan& s = plan_.stages[stage];
+    if (task_index < 0 || task_index >= s.num_tasks)
+        throw std::invalid_argument(fmt::format("task {} of stage {} does not exist (it has {})",
+                                                task_index, s.name, s.num_tasks));
+    SetFloatingPointMode();
+    const uint64_t rays_before = Scene::ThreadRayCount();
+    std::string result;
+    switch (s.kind) {
+        case StageKind::kPhotons:
+            result = RunPhotonTask(task_index, arena);
+            break;
+        case StageKind::kIrradiance:
+            result = RunIrradianceTask(stage, task_index, artifacts, arena);
+            break;
+        case StageKind::kRender: {
+            TileFilm film = RenderTile(plan_.tiles[task_index], arena, artifacts);
+            result = EncodeTileResult(TileResult{task_index, film.Region(), film.Data()});
+            // RenderTile counted its own rays.
+            return result;
+        }
+    }
+    rays_ += Scene::ThreadRayCount() - rays_before;
+    return result;
+}
+
+std::string FrameRenderer::RunPhotonTask(int task_index, ScratchBuffer& arena) const {
+    PhotonSettings ps;
+    ps.global_photons = settings_.photon.global_photons;
+    ps.caustic_photons = settings_.photon.caustic_photons;
+    ps.batches = settings_.photon.batches;
+    ps.global_direct = settings_.photon.global_direct;
+    ps.max_depth = settings_.max_depth;
+    const uint64_t key = Hash(settings_.seed, settings_.frame, kPhotonStreamSalt);
+    PhotonBatch batch = TracePhotonBatch(scene_, ps, key, task_index, arena);
+    arena.Reset();
+    return EncodePhotonBatch(batch, task_index);
+}
+
+std::string FrameRenderer::RunIrradianceTask(int stage, int task_index,
+                                             const ArtifactSet& artifacts,
+                                             ScratchBuffer& arena) const {
+    const StagePlan& s = plan_.stages[stage];
+    std::unique_ptr<Integrator> integrator =
+        MakeIntegrator(settings_, scene_, Inputs(stage, artifacts));
+    std::unique_ptr<IntegratorTaskState> state = integrator->NewTaskState();
+    std::unique_ptr<Sampler> sampler = sampler_->Clone();
+    const Camera& camera = scene_.GetCamera();
+    const PixelBounds& tile = plan_.tiles[task_index];
+    const int stride = std::max(1, s.pixel_stride);
+    // The pass's pixels lie on a grid over the whole image, so that passes are coarse
+    // to fine across tile borders too; each at its centre, on its first sample.
+    const int y0 = (tile.lo.y + stride - 1) / stride * stride;
+    const int x0 = (tile.lo.x + stride - 1) / stride * stride;
+    for (int y = y0; y < tile.hi.y; y += stride) {
+        for (int x = x0; x < tile.hi.x; x += stride) {
+            sampler->StartPixelSample(Vec2i(x, y), 0);
+            CameraSample cs;
+            sampler->GetPixel2D();
+            cs.p_film = Vec2(x + 0.5f, y + 0.5f);
+            cs.p_lens = sampler->Get2D();
+            cs.time = sampler->Get1D();
+            integrator->PrepareIrradiance(camera.GenerateRay(cs), *sampler, arena, state.get());
+            arena.Reset();
+        }
+    }
+    return EncodeIrradianceTaskResult(task_index, integrator->NewRecords(state.get()));
+}
+
+TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena,
+                                   const ArtifactSet& artifacts) const {
+    SetFloatingPointMode();
+    const uint64_t rays_before = Scene::ThreadRayCount();
+    const int render_stage = plan_.RenderStageIndex();
+    std::unique_ptr<Integrator> integrator =
+        MakeIntegrator(settings_, scene_, Inputs(render_stage, artifacts));
+    std::unique_ptr<IntegratorTaskState> state = integrator->NewTaskState();
     TileFilm film(tile, resolution_, *filter_);
     std::unique_ptr<Sampler> sampler = sampler_->Clone();
     const Camera& camera = scene_.GetCamera();
@@ -44,7 +189,7 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
                 cs.p_lens = sampler->Get2D();
                 cs.time = sampler->Get1D();
                 Ray ray = camera.GenerateRay(cs);
-                SampleValue v = integrator_->Li(ray, *sampler, arena);
+                SampleValue v = integrator->Li(ray, *sampler, arena, state.get());
                 arena.Reset();
                 // A NaN or infinity would poison the whole pixel (and its neighbours
                 // through the filter); drop the sample's radiance instead.
@@ -55,6 +200,16 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     }
     rays_ += Scene::ThreadRayCount() - rays_before;
     return film;
+}
+
+TileResult ExecuteTileTask(const FrameRenderer& renderer, int task_index, ScratchBuffer& arena,
+                           const ArtifactSet& artifacts) {
+    const auto& tiles = renderer.Tiles();
+    if (task_index < 0 || task_index >= static_cast<int>(tiles.size()))
+        throw std::invalid_argument(
+            fmt::format("tile task {} does not exist (frame has {})", task_index, tiles.size()));
+    TileFilm film = renderer.RenderTile(tiles[task_index], arena, artifacts);
+    return TileResult{task_index, film.Region(), film.Data()};
 }
 
 }  // namespace tessera

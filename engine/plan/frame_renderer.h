@@ -1,21 +1,28 @@
 #pragma once
 
-// Renders the tiles of one frame. A tile's result depends only on the scene, the
-// settings, the frame and the tile's bounds: random streams are keyed by (seed, frame,
-// pixel, sample index), never by thread, so any runner may render any tile anywhere.
+// Executes the tasks of one frame's render plan. A task's result depends only on the
+// scene, the settings, the frame, the stage, the task index and the artifacts it reads:
+// random streams are keyed by (seed, frame, pixel, sample index) or (seed, frame, stage,
+// batch), never by thread, so any runner may run any task anywhere.
 
 #include <atomic>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/arena.h"
 #include "film/film.h"
+#include "integrator/frame_inputs.h"
 #include "integrator/integrator.h"
+#include "plan/render_plan.h"
 #include "plan/render_settings.h"
 #include "sampler/sampler.h"
 #include "scene/scene.h"
 
 namespace tessera {
+
+// The artifacts a task reads, by stage index (null where the task reads nothing).
+using ArtifactSet = std::vector<std::shared_ptr<const Artifact>>;
 
 class FrameRenderer {
   public:
@@ -23,22 +30,47 @@ class FrameRenderer {
     // spp < 1, tile size < 1).
     FrameRenderer(const Scene& scene, const RenderSettings& settings);
 
-    const std::vector<PixelBounds>& Tiles() const { return tiles_; }
-    // Thread-safe; `arena` is the calling thread's scratch memory.
-    TileFilm RenderTile(const PixelBounds& tile, ScratchBuffer& arena) const;
+    const RenderPlan& Plan() const { return plan_; }
+    const RenderSettings& Settings() const { return settings_; }
+    const std::vector<PixelBounds>& Tiles() const { return plan_.tiles; }
     Vec2i Resolution() const { return resolution_; }
-    // Rays traced so far by RenderTile calls (camera, bounce and shadow rays).
+
+    // Runs task `task_index` of stage `stage` and returns its encoded result.
+    // `artifacts` holds (at least) the artifacts of the stages it reads. Thread-safe;
+    // `arena` is the calling thread's scratch memory. Throws std::invalid_argument for a
+    // task that does not exist or an artifact that is missing.
+    std::string RunTask(int stage, int task_index, const ArtifactSet& artifacts,
+                        ScratchBuffer& arena) const;
+
+    // Decodes the merged artifact of `stage` and builds what searches it (the photon
+    // maps' kd-trees, the irradiance cache's octree). Throws std::runtime_error for
+    // malformed bytes.
+    std::shared_ptr<const Artifact> LoadArtifact(int stage, const std::string& bytes) const;
+
+    // Renders one tile of the render stage (path tracing needs no artifacts).
+    TileFilm RenderTile(const PixelBounds& tile, ScratchBuffer& arena,
+                        const ArtifactSet& artifacts = {}) const;
+
+    // Rays traced so far by this renderer's tasks (camera, bounce and shadow rays).
     uint64_t RaysTraced() const { return rays_.load(); }
 
   private:
+    FrameInputs Inputs(int stage, const ArtifactSet& artifacts) const;
+    std::string RunIrradianceTask(int stage, int task_index, const ArtifactSet& artifacts,
+                                  ScratchBuffer& arena) const;
+    std::string RunPhotonTask(int task_index, ScratchBuffer& arena) const;
+
     const Scene& scene_;
     RenderSettings settings_;
     Vec2i resolution_;
-    std::unique_ptr<Integrator> integrator_;
+    RenderPlan plan_;
     std::unique_ptr<Filter> filter_;
-    std::unique_ptr<Sampler> sampler_;  // prototype; each tile renders with a clone
-    std::vector<PixelBounds> tiles_;
+    std::unique_ptr<Sampler> sampler_;  // prototype; each task renders with a clone
     mutable std::atomic<uint64_t> rays_{0};
 };
+
+// Renders tile task `task_index` of the renderer's render stage.
+TileResult ExecuteTileTask(const FrameRenderer& renderer, int task_index, ScratchBuffer& arena,
+                           const ArtifactSet& artifacts = {});
 
 }  // namespace tessera

@@ -4,32 +4,60 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <chrono>
 #include <mutex>
+
+#include "integrator/frame_inputs.h"
 
 namespace tessera {
 
 Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int threads,
-                       const ProgressCallback& progress, uint64_t* rays_traced) {
+                       const ProgressCallback& progress, uint64_t* rays_traced,
+                       LocalRenderStats* stats) {
     FrameRenderer renderer(scene, settings);
-    RenderPlan plan = MakeRenderPlan(renderer.Resolution(), settings);
-    const int n = static_cast<int>(plan.tiles.size());
-    std::vector<TileResult> results(n);
+    const RenderPlan& plan = renderer.Plan();
+    const int num_stages = static_cast<int>(plan.stages.size());
+    ArtifactSet artifacts(num_stages);
+    std::vector<std::string> artifact_bytes(num_stages);
     tbb::enumerable_thread_specific<ScratchBuffer> arenas;
-    std::mutex progress_mutex;
-    int done = 0;
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-        tbb::parallel_for(0, n, [&](int i) {
-            results[i] = ExecuteTileTask(renderer, i, arenas.local());
-            if (progress) {
-                std::lock_guard lock(progress_mutex);
-                progress(++done, n);
-            }
+    std::vector<std::string> results;
+    LocalRenderStats local_stats;
+    for (int s = 0; s < num_stages; ++s) {
+        const auto start = std::chrono::steady_clock::now();
+        const StagePlan& stage = plan.stages[s];
+        const int n = stage.num_tasks;
+        results.assign(n, {});
+        std::mutex progress_mutex;
+        int done = 0;
+        arena.execute([&] {
+            tbb::parallel_for(0, n, [&](int i) {
+                results[i] = renderer.RunTask(s, i, artifacts, arenas.local());
+                if (progress) {
+                    std::lock_guard lock(progress_mutex);
+                    progress(stage, ++done, n);
+                }
+            });
         });
-    });
+        if (stage.produces_artifact) {
+            const std::string& base = stage.extends >= 0 ? artifact_bytes[stage.extends] : "";
+            artifact_bytes[s] = MergeStageResults(plan, s, base, results);
+            artifacts[s] = renderer.LoadArtifact(s, artifact_bytes[s]);
+            if (auto* p = dynamic_cast<const PhotonMapsArtifact*>(artifacts[s].get())) {
+                local_stats.global_photons = p->global.Size();
+                local_stats.caustic_photons = p->caustic.Size();
+            }
+            if (auto* ic = dynamic_cast<const IrradianceArtifact*>(artifacts[s].get()))
+                local_stats.irradiance_records = ic->cache.Size();
+        }
+        local_stats.stage_seconds.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
     FrameAssembler assembler(plan);
-    for (TileResult& r : results) assembler.Add(std::move(r));
-    if (rays_traced) *rays_traced = renderer.RaysTraced();
+    for (std::string& r : results) assembler.Add(DecodeTileResult(r));
+    local_stats.rays = renderer.RaysTraced();
+    if (rays_traced) *rays_traced = local_stats.rays;
+    if (stats) *stats = std::move(local_stats);
     return assembler.Assemble();
 }
 

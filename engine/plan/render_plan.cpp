@@ -5,6 +5,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "integrator/integrator.h"
+
 namespace tessera {
 
 int RenderPlan::TotalTasks() const {
@@ -13,23 +15,73 @@ int RenderPlan::TotalTasks() const {
     return n;
 }
 
+int RenderPlan::StageOffset(int stage) const {
+    int n = 0;
+    for (int i = 0; i < stage && i < static_cast<int>(stages.size()); ++i) n += stages[i].num_tasks;
+    return n;
+}
+
+int RenderPlan::StageIndex(const std::string& name) const {
+    for (size_t i = 0; i < stages.size(); ++i)
+        if (stages[i].name == name) return static_cast<int>(i);
+    return -1;
+}
+
 RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     if (settings.tile_size < 1) throw std::invalid_argument("tile size must be at least 1");
     RenderPlan plan;
     plan.frame = settings.frame;
     plan.resolution = resolution;
     plan.tiles = MakeTiles(resolution, settings.tile_size);
-    plan.stages.push_back({kRenderStage, static_cast<int>(plan.tiles.size())});
+    const int tiles = static_cast<int>(plan.tiles.size());
+    std::vector<int> render_reads;
+    if (UsesPhotonMaps(settings)) {
+        if (settings.photon.batches < 1)
+            throw std::invalid_argument("photon batches must be at least 1");
+        StagePlan photons;
+        photons.name = kPhotonStage;
+        photons.kind = StageKind::kPhotons;
+        photons.task_kind = TaskKind::kBatch;
+        photons.num_tasks = settings.photon.batches;
+        photons.produces_artifact = true;
+        photons.label = "photons";
+        plan.stages.push_back(photons);
+        render_reads.push_back(0);
+    }
+    if (UsesIrradianceCache(settings)) {
+        const int passes = settings.irradiance.passes;
+        if (passes < 0 || passes > 8)
+            throw std::invalid_argument("irradiance passes must be between 0 and 8");
+        const int photon_stage = render_reads.empty() ? -1 : 0;
+        int previous = -1;
+        for (int p = 1; p <= passes; ++p) {
+            StagePlan pass;
+            pass.name = kIrradianceStagePrefix + std::to_string(p);
+            pass.kind = StageKind::kIrradiance;
+            pass.task_kind = TaskKind::kTile;
+            pass.num_tasks = tiles;
+            pass.produces_artifact = true;
+            if (photon_stage >= 0) pass.reads.push_back(photon_stage);
+            if (previous >= 0) pass.reads.push_back(previous);
+            pass.extends = previous;
+            pass.pass = p;
+            // Coarse to fine: every 16th, 4th, then every pixel (for three passes).
+            pass.pixel_stride = 1 << (2 * (passes - p));
+            pass.label = fmt::format("irradiance pass {}/{}", p, passes);
+            previous = static_cast<int>(plan.stages.size());
+            plan.stages.push_back(pass);
+        }
+        if (previous >= 0) render_reads.push_back(previous);
+    }
+    StagePlan render;
+    render.name = kRenderStage;
+    render.kind = StageKind::kRender;
+    render.task_kind = TaskKind::kTile;
+    render.num_tasks = tiles;
+    render.reads = render_reads;
+    render.label = "render";
+    plan.stages.push_back(render);
     return plan;
-}
-
-TileResult ExecuteTileTask(const FrameRenderer& renderer, int task_index, ScratchBuffer& arena) {
-    const auto& tiles = renderer.Tiles();
-    if (task_index < 0 || task_index >= static_cast<int>(tiles.size()))
-        throw std::invalid_argument(
-            fmt::format("tile task {} does not exist (frame has {})", task_index, tiles.size()));
-    TileFilm film = renderer.RenderTile(tiles[task_index], arena);
-    return TileResult{task_index, film.Region(), film.Data()};
 }
 
 namespace {
@@ -128,7 +180,7 @@ Image FrameAssembler::Assemble() const {
 }
 
 ImageMetadata FrameMetadata(const RenderSettings& s, double render_seconds) {
-    return {
+    ImageMetadata meta = {
         {"tessera:spp", std::to_string(s.spp)},
         {"tessera:integrator", s.integrator},
         {"tessera:sampler", s.sampler == SamplerType::kStratified ? "stratified" : "independent"},
@@ -137,6 +189,17 @@ ImageMetadata FrameMetadata(const RenderSettings& s, double render_seconds) {
         {"tessera:max_depth", std::to_string(s.max_depth)},
         {"tessera:render_time_s", fmt::format("{:.3f}", render_seconds)},
     };
+    if (UsesPhotonMaps(s)) {
+        meta["tessera:global_photons"] = std::to_string(s.photon.global_photons);
+        meta["tessera:caustic_photons"] = std::to_string(s.photon.caustic_photons);
+    }
+    if (UsesIrradianceCache(s)) {
+        meta["tessera:ic_accuracy"] = fmt::format("{}", s.irradiance.accuracy);
+        meta["tessera:ic_samples"] = std::to_string(s.irradiance.hemisphere_samples);
+        meta["tessera:ic_gradients"] = s.irradiance.gradients ? "1" : "0";
+    }
+    if (s.debug != DebugView::kNone) meta["tessera:debug"] = DebugViewName(s.debug);
+    return meta;
 }
 
 }  // namespace tessera

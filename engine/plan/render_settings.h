@@ -12,8 +12,61 @@
 
 namespace tessera {
 
+// Photon mapping (integrator "photon"): Jensen's global and caustic maps.
+struct PhotonOptions {
+    int global_photons = 200000;  // photons stored in the global map (all batches)
+    int caustic_photons = 50000;  // photons stored in the caustic map
+    int batches = 16;             // photon-shooting tasks per frame
+    bool global_direct = false;   // the global map also stores first-bounce photons
+    int global_lookup = 100;      // photons per global radiance estimate
+    int caustic_lookup = 50;      // photons per caustic radiance estimate
+    float max_radius = 0;         // of a radiance estimate; 0: 5% of the scene's radius
+    int gather_rays = 32;         // final-gather rays per camera sample without the cache
+};
+
+// Irradiance caching (integrator "irradiance-cache", and "photon" with `enabled`).
+struct IrradianceOptions {
+    bool enabled = false;  // "photon" only: its final gather goes through the cache
+    float accuracy = 0.25f;
+    int hemisphere_samples = 256;
+    float min_radius = 0;  // 0: 0.5% of the scene's radius
+    float max_radius = 0;  // 0: 20% of the scene's radius
+    int passes = 3;        // coarse-to-fine passes over the tiles before the render stage
+    bool gradients = true;
+};
+
+// Debug images (replace the beauty image's RGB; AOVs unchanged).
+enum class DebugView {
+    kNone,
+    kPhotons,   // the global photon map drawn (each pixel: photons near its first hit)
+    kRecords,   // irradiance-cache record positions over the image
+    kIndirect,  // indirect diffuse light only
+};
+
+// "none", "photons", "records", "indirect": the names the scene format and the command
+// line use.
+inline const char* DebugViewName(DebugView view) {
+    switch (view) {
+        case DebugView::kPhotons:
+            return "photons";
+        case DebugView::kRecords:
+            return "records";
+        case DebugView::kIndirect:
+            return "indirect";
+        default:
+            return "none";
+    }
+}
+
+inline std::optional<DebugView> ParseDebugView(const std::string& name) {
+    for (DebugView d :
+         {DebugView::kNone, DebugView::kPhotons, DebugView::kRecords, DebugView::kIndirect})
+        if (name == DebugViewName(d)) return d;
+    return std::nullopt;
+}
+
 struct RenderSettings {
-    std::string integrator = "path";  // path | direct
+    std::string integrator = "path";  // path | direct | photon | irradiance-cache
     int spp = 16;
     int max_depth = 64;  // longest path, counted in bounces
     int rr_depth = 3;    // Russian roulette starts after this many bounces
@@ -23,6 +76,9 @@ struct RenderSettings {
     FilterSettings filter;
     int frame = 0;
     Vec2i resolution{512, 512};
+    PhotonOptions photon;
+    IrradianceOptions irradiance;
+    DebugView debug = DebugView::kNone;
 };
 
 // Command-line values that replace the scene file's.
@@ -31,6 +87,12 @@ struct RenderOverrides {
     std::optional<int> spp, max_depth, tile_size, frame, width, height;
     std::optional<uint64_t> seed;
     std::optional<SamplerType> sampler;
+    std::optional<bool> irradiance_cache;
+    std::optional<int> photons_global, photons_caustic, photon_batches;
+    std::optional<float> ic_accuracy;
+    std::optional<int> ic_samples, ic_passes;
+    std::optional<bool> ic_gradients;
+    std::optional<DebugView> debug;
 };
 
 }  // namespace tessera

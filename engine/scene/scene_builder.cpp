@@ -191,6 +191,33 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     }
     if (o.seed) s.seed = *o.seed;
     if (o.sampler) s.sampler = *o.sampler;
+    if (o.irradiance_cache) s.irradiance.enabled = *o.irradiance_cache;
+    if (o.photons_global) {
+        if (*o.photons_global < 0) fail("photon counts must not be negative");
+        s.photon.global_photons = *o.photons_global;
+    }
+    if (o.photons_caustic) {
+        if (*o.photons_caustic < 0) fail("photon counts must not be negative");
+        s.photon.caustic_photons = *o.photons_caustic;
+    }
+    if (o.photon_batches) {
+        if (*o.photon_batches < 1) fail("photon batches must be at least 1");
+        s.photon.batches = *o.photon_batches;
+    }
+    if (o.ic_accuracy) {
+        if (!(*o.ic_accuracy > 0)) fail("cache accuracy must be positive");
+        s.irradiance.accuracy = *o.ic_accuracy;
+    }
+    if (o.ic_samples) {
+        if (*o.ic_samples < 4) fail("the cache needs at least 4 hemisphere samples");
+        s.irradiance.hemisphere_samples = *o.ic_samples;
+    }
+    if (o.ic_passes) {
+        if (*o.ic_passes < 0 || *o.ic_passes > 8) fail("cache passes must be between 0 and 8");
+        s.irradiance.passes = *o.ic_passes;
+    }
+    if (o.ic_gradients) s.irradiance.gradients = *o.ic_gradients;
+    if (o.debug) s.debug = *o.debug;
     return s;
 }
 

@@ -18,7 +18,7 @@
 namespace tessera {
 
 const std::vector<std::string>& KnownIntegrators() {
-    static const std::vector<std::string> kNames = {"path", "direct"};
+    static const std::vector<std::string> kNames = {"path", "direct", "photon", "irradiance-cache"};
     return kNames;
 }
 
@@ -149,6 +149,35 @@ FilterSettings ParseFilter(const JsonValue& v) {
     return f;
 }
 
+PhotonOptions ParsePhoton(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    PhotonOptions p;
+    if (auto n = o.Get("global_photons")) p.global_photons = int(n->AsInt(0, 1 << 30));
+    if (auto n = o.Get("caustic_photons")) p.caustic_photons = int(n->AsInt(0, 1 << 30));
+    if (auto n = o.Get("batches")) p.batches = int(n->AsInt(1, 4096));
+    if (auto b = o.Get("global_direct")) p.global_direct = b->AsBool();
+    if (auto n = o.Get("global_lookup")) p.global_lookup = int(n->AsInt(1, 10000));
+    if (auto n = o.Get("caustic_lookup")) p.caustic_lookup = int(n->AsInt(1, 10000));
+    if (auto r = o.Get("max_radius")) p.max_radius = Positive(*r);
+    if (auto n = o.Get("gather_rays")) p.gather_rays = int(n->AsInt(1, 65536));
+    o.Finish("the photon block");
+    return p;
+}
+
+IrradianceOptions ParseIrradianceCache(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    IrradianceOptions c;
+    if (auto b = o.Get("enabled")) c.enabled = b->AsBool();
+    if (auto a = o.Get("accuracy")) c.accuracy = Positive(*a);
+    if (auto n = o.Get("hemisphere_samples")) c.hemisphere_samples = int(n->AsInt(4, 1 << 20));
+    if (auto r = o.Get("min_radius")) c.min_radius = Positive(*r);
+    if (auto r = o.Get("max_radius")) c.max_radius = Positive(*r);
+    if (auto n = o.Get("passes")) c.passes = int(n->AsInt(0, 8));
+    if (auto b = o.Get("gradients")) c.gradients = b->AsBool();
+    o.Finish("the irradiance_cache block");
+    return c;
+}
+
 RenderSettings ParseRender(const JsonValue& v) {
     JsonObject o = v.AsObject();
     RenderSettings r;
@@ -167,6 +196,12 @@ RenderSettings ParseRender(const JsonValue& v) {
     if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
     if (auto f = o.Get("frame")) r.frame = int(f->AsInt(0, 1 << 30));
     if (auto f = o.Get("filter")) r.filter = ParseFilter(*f);
+    if (auto p = o.Get("photon")) r.photon = ParsePhoton(*p);
+    if (auto c = o.Get("irradiance_cache")) r.irradiance = ParseIrradianceCache(*c);
+    if (auto d = o.Get("debug")) {
+        int t = ParseEnum(*d, {"none", "photons", "records", "indirect"}, "debug view");
+        r.debug = static_cast<DebugView>(t);
+    }
     o.Finish("the render block");
     return r;
 }

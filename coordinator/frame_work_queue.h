@@ -1,0 +1,72 @@
+#pragma once
+
+// The coordinator's own work on frames, off the gRPC threads: one thread that merges
+// artifact stages (when every task of a frame's "photons" or "irradiance-2" stage is
+// done: merge the results in task order, store the artifact as a durable blob, record
+// it and release the stages that read it, see Scheduler::StageMerged) and assembles
+// frames (when every task of the render stage is done: write the EXR and its preview,
+// then mark the frame done).
+//
+// At start-up the queue is seeded with the work a crash left undone: artifact stages
+// whose tasks are all done but that were never merged, and frames whose tasks are all
+// done but whose EXR was never recorded. Each step is idempotent until it is recorded,
+// so doing one again after a crash changes nothing.
+//
+// A task result that cannot be read back sends its task back to the queue (it runs
+// again) instead of failing the job; any other error fails the job.
+
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <tuple>
+
+#include "blob_store.h"
+#include "scheduler.h"
+
+namespace tessera {
+
+class FrameWorkQueue {
+  public:
+    FrameWorkQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
+                   const Clock& clock);
+    ~FrameWorkQueue();
+
+    // Queues the work left over from before a restart and starts the thread.
+    void Start();
+    // Merge stage `stage` of the frame.
+    void EnqueueMerge(const std::string& job_id, int frame, int stage);
+    // Assemble and write the frame.
+    void EnqueueAssembly(const std::string& job_id, int frame);
+    // Finishes the item in progress, then stops; items still queued are found again at
+    // the next start-up.
+    void Stop();
+    // Blocks until the queue is empty and nothing is in progress (for tests).
+    void WaitIdle();
+
+  private:
+    static constexpr int kAssemble = -1;             // the "stage" of an assembly item
+    using Item = std::tuple<std::string, int, int>;  // job id, frame, stage or kAssemble
+
+    void Enqueue(const Item& item);
+    void Run();
+    void Merge(const std::string& job_id, int frame, int stage);
+    void Assemble(const std::string& job_id, int frame);
+    void FailJob(const std::string& job_id, const std::string& message);
+
+    Scheduler& scheduler_;
+    BlobStore& blobs_;
+    std::string output_dir_;
+    const Clock& clock_;
+    std::mutex mu_;
+    std::condition_variable cv_;
+    std::deque<Item> queue_;
+    std::set<Item> queued_;
+    bool busy_ = false;
+    bool stop_ = false;
+    std::thread thread_;
+};
+
+}  // namespace tessera

@@ -1,0 +1,157 @@
+#include "plan/stage_results.h"
+
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <stdexcept>
+
+#include "core/wire_format.h"
+#include "photon/photon_tracer.h"
+#include "plan/render_plan.h"
+
+namespace tessera {
+namespace {
+
+constexpr uint32_t kIrradianceTaskMagic = 0x52545249;  // "IRTR"
+constexpr uint32_t kPhotonMapsMagic = 0x504d4850;      // "PHMP"
+constexpr uint32_t kVersion = 1;
+
+void CheckHeader(wire::Reader& r, uint32_t magic) {
+    if (r.U32() != magic) r.Fail("wrong magic number");
+    if (uint32_t v = r.U32(); v != kVersion) r.Fail(fmt::format("version {} is not supported", v));
+}
+
+void CheckEnd(const wire::Reader& r) {
+    if (r.Remaining() != 0) r.Fail("trailing bytes");
+}
+
+}  // namespace
+
+std::string EncodeIrradianceTaskResult(int task_index, const std::vector<IrradianceRecord>& r) {
+    std::string out;
+    wire::Writer w(&out);
+    w.U32(kIrradianceTaskMagic);
+    w.U32(kVersion);
+    w.I32(task_index);
+    w.Blob(EncodeIrradianceRecords(r));
+    return out;
+}
+
+std::vector<IrradianceRecord> DecodeIrradianceTaskResult(const std::string& bytes,
+                                                         int* task_index) {
+    wire::Reader r(bytes, "irradiance task result");
+    CheckHeader(r, kIrradianceTaskMagic);
+    *task_index = r.I32();
+    std::vector<IrradianceRecord> records = DecodeIrradianceRecords(std::string(r.Blob()));
+    CheckEnd(r);
+    return records;
+}
+
+std::string EncodePhotonMaps(const std::vector<Photon>& global,
+                             const std::vector<Photon>& caustic) {
+    std::string out;
+    wire::Writer w(&out);
+    w.U32(kPhotonMapsMagic);
+    w.U32(kVersion);
+    w.Blob(EncodePhotons(global));
+    w.Blob(EncodePhotons(caustic));
+    return out;
+}
+
+void DecodePhotonMaps(const std::string& bytes, std::vector<Photon>* global,
+                      std::vector<Photon>* caustic) {
+    wire::Reader r(bytes, "photon maps");
+    CheckHeader(r, kPhotonMapsMagic);
+    *global = DecodePhotons(std::string(r.Blob()));
+    *caustic = DecodePhotons(std::string(r.Blob()));
+    CheckEnd(r);
+}
+
+void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const std::string& bytes) {
+    if (stage < 0 || stage >= static_cast<int>(plan.stages.size()))
+        throw std::invalid_argument(fmt::format("stage {} does not exist", stage));
+    const StagePlan& s = plan.stages[stage];
+    if (task_index < 0 || task_index >= s.num_tasks)
+        throw std::invalid_argument(
+            fmt::format("task {} of stage {} does not exist", task_index, s.name));
+    try {
+        switch (s.kind) {
+            case StageKind::kPhotons: {
+                int batch = -1;
+                DecodePhotonBatch(bytes, &batch);
+                if (batch != task_index)
+                    throw std::invalid_argument(
+                        fmt::format("the result is photon batch {}, not {}", batch, task_index));
+                return;
+            }
+            case StageKind::kIrradiance: {
+                int index = -1;
+                DecodeIrradianceTaskResult(bytes, &index);
+                if (index != task_index)
+                    throw std::invalid_argument(fmt::format(
+                        "the result holds the records of tile {}, not {}", index, task_index));
+                return;
+            }
+            case StageKind::kRender: {
+                TileResult r = DecodeTileResult(bytes);
+                if (r.task_index != task_index)
+                    throw std::invalid_argument(
+                        fmt::format("the result is tile {}, not {}", r.task_index, task_index));
+                const PixelBounds& tile = plan.tiles[task_index];
+                const PixelBounds& g = r.region;
+                bool covers = g.lo.x <= tile.lo.x && g.lo.y <= tile.lo.y && g.hi.x >= tile.hi.x &&
+                              g.hi.y >= tile.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
+                              g.hi.x <= plan.resolution.x && g.hi.y <= plan.resolution.y;
+                if (!covers)
+                    throw std::invalid_argument(fmt::format(
+                        "the result of tile {} does not cover its tile inside the image",
+                        task_index));
+                return;
+            }
+        }
+    } catch (const std::runtime_error& e) {
+        throw std::invalid_argument(e.what());
+    }
+}
+
+std::string MergeStageResults(const RenderPlan& plan, int stage, const std::string& base,
+                              const std::vector<std::string>& results) {
+    if (stage < 0 || stage >= static_cast<int>(plan.stages.size()))
+        throw std::invalid_argument(fmt::format("stage {} does not exist", stage));
+    const StagePlan& s = plan.stages[stage];
+    if (!s.produces_artifact)
+        throw std::invalid_argument(fmt::format("stage {} produces no artifact", s.name));
+    if (static_cast<int>(results.size()) != s.num_tasks)
+        throw std::invalid_argument(fmt::format("stage {} has {} results for {} tasks", s.name,
+                                                results.size(), s.num_tasks));
+    try {
+        if (s.kind == StageKind::kPhotons) {
+            std::vector<PhotonBatch> batches;
+            batches.reserve(results.size());
+            for (size_t i = 0; i < results.size(); ++i) {
+                int batch = -1;
+                batches.push_back(DecodePhotonBatch(results[i], &batch));
+                if (batch != static_cast<int>(i))
+                    throw std::invalid_argument(
+                        fmt::format("result {} is photon batch {}", i, batch));
+            }
+            PhotonMaps maps = MergePhotonBatches(batches);
+            return EncodePhotonMaps(maps.global, maps.caustic);
+        }
+        // Irradiance: the records of the passes before, then this pass's by tile.
+        std::vector<IrradianceRecord> records;
+        if (!base.empty()) records = DecodeIrradianceRecords(base);
+        for (size_t i = 0; i < results.size(); ++i) {
+            int index = -1;
+            std::vector<IrradianceRecord> r = DecodeIrradianceTaskResult(results[i], &index);
+            if (index != static_cast<int>(i))
+                throw std::invalid_argument(fmt::format("result {} holds tile {}", i, index));
+            records.insert(records.end(), r.begin(), r.end());
+        }
+        return EncodeIrradianceRecords(records);
+    } catch (const std::runtime_error& e) {
+        throw std::invalid_argument(fmt::format("stage {}: {}", s.name, e.what()));
+    }
+}
+
+}  // namespace tessera
