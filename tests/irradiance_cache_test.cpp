@@ -189,6 +189,51 @@ TEST(IrradianceOctreeTest, EmptyAndDegenerateBounds) {
     }
 }
 
+// With min_radius > 0 lookups go through per-thread memos of each grid cell's candidates:
+// they must still find every usable record, also right after records are added (a memo
+// of the cache before must not be reused), and for many queries in one cell.
+TEST(IrradianceCellGridTest, LookupsThroughTheCellGridMatchBruteForce) {
+    for (float min_radius : {0.01f, 0.2f}) {
+        Pcg32 rng(11);
+        Bounds3 bounds{{0, 0, 0}, {10, 10, 10}};
+        IrradianceCacheSettings settings;
+        settings.accuracy = 0.3f;
+        settings.min_radius = min_radius;
+        IrradianceCache cache(bounds, settings);
+        IrradianceCache other(bounds, settings);  // interleaved lookups share the memo
+        for (int round = 0; round < 8; ++round) {
+            for (int i = 0; i < 150; ++i) {
+                float r = i % 53 == 0 ? kInfinity : RandomLog(rng, min_radius, 4.0f);
+                cache.Add(MakeRecord(RandomInBox(rng, bounds.lo, bounds.hi), Vec3(0, 0, 1), r));
+                other.Add(MakeRecord(RandomInBox(rng, bounds.lo, bounds.hi), Vec3(0, 0, 1), r));
+            }
+            std::vector<Vec3> queries = MakeQueries(rng, cache, bounds.lo, bounds.hi, 40);
+            // Pixel-like bursts: many lookups close together, then the next burst.
+            Vec3 centre = RandomInBox(rng, bounds.lo, bounds.hi);
+            for (int i = 0; i < 60; ++i)
+                queries.push_back(centre + RandomUnitVector(rng) * (0.05f * rng.NextFloat()));
+            ExpectLookupExact(cache, queries);
+            ExpectLookupExact(other, queries);
+        }
+    }
+}
+
+TEST(IrradianceCellGridTest, ARecordAddedAfterALookupIsFoundThere) {
+    IrradianceCacheSettings settings;
+    settings.accuracy = 0.3f;
+    settings.min_radius = 0.1f;
+    IrradianceCache cache(Bounds3{{0, 0, 0}, {10, 10, 10}}, settings);
+    const Vec3 p(5, 5, 5), n(0, 0, 1);
+    Rgb E;
+    EXPECT_FALSE(InterpolateIrradiance({&cache}, p, n, &E));
+    cache.Add(MakeRecord(p, n, 1.0f, Rgb(2)));  // what a tile does after a failed lookup
+    ASSERT_TRUE(InterpolateIrradiance({&cache}, p + Vec3(0.01f, 0, 0), n, &E));
+    EXPECT_FLOAT_EQ(E.g, 2);
+    cache.Add(MakeRecord(p + Vec3(0.02f, 0, 0), n, 1.0f, Rgb(4)));
+    ASSERT_TRUE(InterpolateIrradiance({&cache}, p + Vec3(0.01f, 0, 0), n, &E));
+    EXPECT_NEAR(E.g, 3, 1e-4);  // equidistant from both
+}
+
 TEST(IrradianceCacheTest, RejectsInvalidRecordsAndSettings) {
     IrradianceCache cache(Bounds3{{0, 0, 0}, {1, 1, 1}}, IrradianceCacheSettings{});
     float nan = std::numeric_limits<float>::quiet_NaN();

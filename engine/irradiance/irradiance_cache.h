@@ -98,9 +98,20 @@ class IrradianceCache {
     std::vector<uint32_t> Candidates(const Vec3& p) const;
 
   private:
+    // Adds record i's contribution at (p, n) if it is usable there.
+    void AccumulateRecord(uint32_t i, const Vec3& p, const Vec3& n, Rgb* sum_E, float* sum_w) const;
+
     IrradianceCacheSettings settings_;
     std::vector<IrradianceRecord> records_;
     IrradianceOctree octree_;
+    // Queries go through a grid of cells (side cell_size_): the candidates of a cell are
+    // gathered from the octree once and kept per thread while the cache is unchanged, so
+    // that the many lookups of a pixel's samples, all in one cell, skip the tree. The
+    // candidate order depends only on the records and the cell, so sums are the same
+    // whichever thread looks up what first.
+    float cell_size_ = 0;   // 0: no grid (min_radius 0)
+    uint64_t id_ = 0;       // names this cache in the per-thread memo
+    uint64_t version_ = 0;  // records added so far
 };
 
 // Interpolated irradiance from one or more caches searched together (the shared,

@@ -106,7 +106,7 @@ void IrradianceOctree::InsertInTree(uint32_t index, const Vec3& p, float radius)
         }
         current = child;
     }
-    nodes_[current].items.push_back(index);
+    nodes_[current].items.push_back(Item{p, radius * radius, index});
 }
 
 }  // namespace tessera

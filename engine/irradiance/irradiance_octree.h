@@ -11,7 +11,9 @@
 // the initial bounds are a hint, not a limit. Insertion after queries is fine; neither
 // is synchronised, so one writer and no concurrent readers while it inserts.
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -27,11 +29,21 @@ class IrradianceOctree {
     void Insert(uint32_t index, const Vec3& p, float radius);
 
     // Calls f(index) for every item with |q - p| < radius, and for some more (a superset:
-    // the caller filters by its own, exact, test). Thread-safe against other queries.
+    // the caller filters by its own, exact, test; only items too large for the tree are
+    // passed unfiltered). Thread-safe against other queries.
     template <typename F>
     void ForEachCandidate(const Vec3& q, F&& f) const {
         for (const Oversize& o : oversize_) f(o.index);
         Visit(root_, q, f);
+    }
+
+    // Calls f(index) for every item whose sphere of influence meets the box [lo, hi], and
+    // for some more: a superset of ForEachCandidate(q) for every q in the box. Thread-safe
+    // against other queries.
+    template <typename F>
+    void ForEachCandidateInBox(const Vec3& lo, const Vec3& hi, F&& f) const {
+        for (const Oversize& o : oversize_) f(o.index);
+        VisitBox(root_, lo, hi, f);
     }
 
     // Statistics, for tests and tuning.
@@ -39,11 +51,18 @@ class IrradianceOctree {
     float RootSize() const { return nodes_[root_].size; }
 
   private:
+    // An item's point and squared radius live beside its index, so that a query rejects
+    // most candidates without touching the caller's (much larger) records.
+    struct Item {
+        Vec3 p;
+        float radius2;
+        uint32_t index;
+    };
     struct Node {
         Vec3 lo;
         float size = 0;  // side of the cube [lo, lo + size]
         std::array<int32_t, 8> children{-1, -1, -1, -1, -1, -1, -1, -1};
-        std::vector<uint32_t> items;
+        std::vector<Item> items;
     };
     // Items too large for the root (2R > root side, or R infinite): checked at every query.
     // They keep their point and radius so that a grown root can take them back.
@@ -71,11 +90,42 @@ class IrradianceOctree {
         return true;
     }
 
+    // Reaches() for a box: the grown cube meets [lo, hi].
+    static bool ReachesBox(const Node& node, const Vec3& lo, const Vec3& hi) {
+        float half = node.size * 0.5f;
+        for (int a = 0; a < 3; ++a) {
+            float slack =
+                1e-5f * (node.size + std::abs(node.lo[a]) + std::abs(lo[a]) + std::abs(hi[a]));
+            if (hi[a] < node.lo[a] - half - slack || lo[a] > node.lo[a] + node.size + half + slack)
+                return false;
+        }
+        return true;
+    }
+    // Squared distance from p to the box, shrunk a little so that rounding never makes it
+    // exceed the distance to a point inside the box.
+    static float BoxDistanceSquared(const Vec3& lo, const Vec3& hi, const Vec3& p) {
+        float d2 = 0;
+        for (int a = 0; a < 3; ++a) {
+            float d = std::max({lo[a] - p[a], 0.0f, p[a] - hi[a]});
+            d2 += d * d;
+        }
+        return d2 * (1 - 1e-5f);
+    }
+    template <typename F>
+    void VisitBox(int32_t index, const Vec3& lo, const Vec3& hi, F& f) const {
+        const Node& node = nodes_[index];
+        if (!ReachesBox(node, lo, hi)) return;
+        for (const Item& item : node.items)
+            if (BoxDistanceSquared(lo, hi, item.p) < item.radius2) f(item.index);
+        for (int32_t child : node.children)
+            if (child >= 0) VisitBox(child, lo, hi, f);
+    }
     template <typename F>
     void Visit(int32_t index, const Vec3& q, F& f) const {
         const Node& node = nodes_[index];
         if (!Reaches(node, q)) return;
-        for (uint32_t item : node.items) f(item);
+        for (const Item& item : node.items)
+            if (DistanceSquared(q, item.p) < item.radius2) f(item.index);
         for (int32_t child : node.children)
             if (child >= 0) Visit(child, q, f);
     }
