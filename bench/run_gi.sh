@@ -27,6 +27,7 @@ echo "== irradiance cache on the Cornell box: error against time"
   "integrator=irradiance-cache spp=4 ic.accuracy=0.3 ic.samples=128" \
   "integrator=irradiance-cache spp=8 ic.accuracy=0.25 ic.samples=256" \
   "integrator=irradiance-cache spp=16 ic.accuracy=0.2 ic.samples=256" \
+  "integrator=irradiance-cache spp=20 ic.accuracy=0.4 ic.samples=768" \
   "integrator=irradiance-cache spp=32 ic.accuracy=0.15 ic.samples=512" \
   "integrator=irradiance-cache spp=16 ic.accuracy=0.2 ic.samples=256 ic.gradients=0" \
   "integrator=irradiance-cache spp=16 ic.accuracy=0.2 ic.samples=256 ic.passes=0"

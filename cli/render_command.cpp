@@ -95,6 +95,14 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
                      stats.caustic_photons);
     if (stats.irradiance_records > 0)
         spdlog::info("irradiance cache: {} shared records", stats.irradiance_records);
+    if (stats.stage_seconds.size() > 1) {
+        std::string times;
+        const RenderPlan plan = MakeRenderPlan(res, s);
+        for (size_t i = 0; i < stats.stage_seconds.size() && i < plan.stages.size(); ++i)
+            times += fmt::format("{}{} {:.2f} s", i ? ", " : "", plan.stages[i].name,
+                                 stats.stage_seconds[i]);
+        spdlog::info("stages: {}", times);
+    }
     double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
