@@ -335,6 +335,9 @@ TEST_F(GiCliTest, BadSettingsAreRefusedBeforeRendering) {
     std::string err;
     EXPECT_NE(0, Run("-o " + out + " --integrator photon --photon-batches 0", &err));
     EXPECT_FALSE(fs::exists(out));
+    EXPECT_NE(0, Run("-o " + out + " --integrator irradiance-cache --debug photons", &err));
+    EXPECT_NE(err.find("photons debug view needs the photon integrator"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out));
 }
 
 }  // namespace

@@ -50,6 +50,16 @@ FrameRenderer::FrameRenderer(const Scene& scene, const RenderSettings& settings)
         if (ic.hemisphere_samples < 4)
             throw std::invalid_argument("the cache needs at least 4 hemisphere samples");
     }
+    if (settings.debug == DebugView::kPhotons && !UsesPhotonMaps(settings))
+        throw std::invalid_argument("the photons debug view needs the photon integrator");
+    if (settings.debug == DebugView::kRecords && !UsesIrradianceCache(settings))
+        throw std::invalid_argument(
+            "the records debug view needs an irradiance cache (integrator irradiance-cache, "
+            "or photon with the cache)");
+    if (settings.debug == DebugView::kIndirect && !UsesPhotonMaps(settings) &&
+        !UsesIrradianceCache(settings))
+        throw std::invalid_argument(
+            "the indirect debug view needs the photon or irradiance-cache integrator");
     resolution_ = scene.GetCamera().Resolution();
     plan_ = MakeRenderPlan(resolution_, settings);
     filter_ = MakeFilter(settings.filter);
