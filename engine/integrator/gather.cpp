@@ -245,8 +245,8 @@ Rgb GatherIntegrator::GatherRadiance(const Vec3& p, const Vec3& ng, const Vec3& 
     return {};
 }
 
-Rgb GatherIntegrator::IndirectIrradiance(const DiffuseVertex& v, Sampler& sampler,
-                                         ScratchBuffer& arena, TaskState* state) const {
+Rgb GatherIntegrator::IndirectIrradiance(const DiffuseVertex& v, ScratchBuffer& arena,
+                                         TaskState* state) const {
     const SurfaceInteraction& si = v.si;
     // The stream of whatever hemisphere rays this vertex casts, named by the vertex
     // itself: the same point gets the same rays in every runner.
@@ -266,7 +266,6 @@ Rgb GatherIntegrator::IndirectIrradiance(const DiffuseVertex& v, Sampler& sample
         return record.E;
     }
     // Brute-force final gather: cosine-weighted hemisphere rays, stratified.
-    (void)sampler;
     const int n = std::max(1, settings_.photon.gather_rays);
     const int side = std::max(1, static_cast<int>(std::sqrt(float(n))));
     const Frame frame(v.n);
@@ -305,13 +304,13 @@ SampleValue GatherIntegrator::Li(const Ray& ray, Sampler& sampler, ScratchBuffer
             out.L = L;
             return out;
         case DebugView::kIndirect:
-            out.L = v.beta * (caustics + v.f * IndirectIrradiance(v, sampler, arena, task));
+            out.L = v.beta * (caustics + v.f * IndirectIrradiance(v, arena, task));
             return out;
         default:
             break;
     }
     L += v.beta * (SampleLight(scene_, si, *v.bsdf, v.wo_local, v.u_pick, v.u_light, false) +
-                   caustics + v.f * IndirectIrradiance(v, sampler, arena, task));
+                   caustics + v.f * IndirectIrradiance(v, arena, task));
     if (settings_.debug == DebugView::kRecords && record_points_) {
         std::vector<std::pair<uint32_t, float>> near;
         record_points_->Nearest(si.p, 1, record_dot_radius_, &near);
@@ -327,7 +326,7 @@ void GatherIntegrator::PrepareIrradiance(const Ray& ray, Sampler& sampler, Scrat
     Rgb L;
     DiffuseVertex v;
     if (FindDiffuse(ray, sampler, arena, nullptr, &L, &v))
-        IndirectIrradiance(v, sampler, arena, static_cast<TaskState*>(state));
+        IndirectIrradiance(v, arena, static_cast<TaskState*>(state));
 }
 
 }  // namespace tessera

@@ -54,8 +54,7 @@ class GatherIntegrator final : public Integrator {
                      Rgb* L, DiffuseVertex* vertex) const;
     // Indirect irradiance arriving at the vertex: from the cache (creating a record in
     // `state` if none covers it) or, without a cache, by a final gather.
-    Rgb IndirectIrradiance(const DiffuseVertex& v, Sampler& sampler, ScratchBuffer& arena,
-                           TaskState* state) const;
+    Rgb IndirectIrradiance(const DiffuseVertex& v, ScratchBuffer& arena, TaskState* state) const;
     // Radiance arriving at p along wi from the rest of the scene, less what the
     // vertex's own light sampling and caustic lookup already count.
     Rgb GatherRadiance(const Vec3& p, const Vec3& ng, const Vec3& wi, float time, Pcg32& rng,
