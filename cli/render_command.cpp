@@ -3,10 +3,12 @@
 #include "render_command.h"
 
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
 #include "core/error.h"
 #include "integrator/integrator.h"
@@ -35,11 +37,46 @@ struct RenderOptions {
     std::string debug;
 };
 
-std::string PreviewPath(const std::string& exr) {
-    return std::filesystem::path(exr).replace_extension(".png").string();
+namespace fs = std::filesystem;
+
+// A render's two files, with the same stem: the EXR (every channel, the metadata: the
+// float data is never lost to a display format) and an RGB image in the format that -o
+// asks for, or a PNG preview when -o names the EXR. -o's own file is never the preview.
+struct OutputFiles {
+    std::string exr;
+    std::string rgb;
+    ImageFormat rgb_format = ImageFormat::kPng;
+};
+
+OutputFiles PlanOutputs(const std::string& output) {
+    const std::optional<ImageFormat> format = FormatFromPath(output);
+    if (!format)
+        throw SceneError("", fmt::format("-o {}: unknown image extension; use one of {}", output,
+                                         SupportedImageExtensions()));
+    if (*format == ImageFormat::kExr)
+        return {output, fs::path(output).replace_extension(".png").string(), ImageFormat::kPng};
+    return {fs::path(output).replace_extension(".exr").string(), output, *format};
+}
+
+// Refuses, before anything is rendered, outputs that could only fail once it is done.
+void CheckOutputs(const OutputFiles& files) {
+    fs::path folder = fs::path(files.exr).parent_path();
+    if (folder.empty()) folder = ".";
+    std::error_code ec;
+    if (!fs::exists(folder, ec))
+        throw SceneError("", fmt::format("output folder {} does not exist", folder.string()));
+    if (!fs::is_directory(folder, ec))
+        throw SceneError("", fmt::format("output folder {} is not a folder", folder.string()));
+    if (::access(folder.c_str(), W_OK | X_OK) != 0)
+        throw SceneError("", fmt::format("output folder {} is not writable", folder.string()));
+    for (const std::string& path : {files.exr, files.rgb})
+        if (fs::is_directory(path, ec))
+            throw SceneError("", fmt::format("output path {} is a directory", path));
 }
 
 void RunRender(RenderOptions& o, CLI::App& cmd) {
+    const OutputFiles files = PlanOutputs(o.output);
+    CheckOutputs(files);
     if (cmd.count("--spp")) o.overrides.spp = o.spp;
     if (cmd.count("--max-depth")) o.overrides.max_depth = o.max_depth;
     if (cmd.count("--tile-size")) o.overrides.tile_size = o.tile_size;
@@ -108,21 +145,24 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
 
     ImageMetadata meta = FrameMetadata(s, seconds);
     meta["tessera:scene"] = std::filesystem::path(o.scene).filename().string();
-    WriteExr(o.output, image, meta);
-    WritePngPreview(PreviewPath(o.output), image);
+    // The EXR first: should the other file fail, the float data is already safe.
+    WriteExr(files.exr, image, meta);
+    WriteRgbImage(files.rgb, image, files.rgb_format);
     double samples = double(res.x) * res.y * s.spp;
-    spdlog::info("wrote {} and {} in {:.2f} s ({:.0f} samples/s, {:.2f} Mrays/s)", o.output,
-                 PreviewPath(o.output), seconds, samples / seconds, rays / seconds * 1e-6);
+    spdlog::info("wrote {} and {} in {:.2f} s ({:.0f} samples/s, {:.2f} Mrays/s)", files.exr,
+                 files.rgb, seconds, samples / seconds, rays / seconds * 1e-6);
 }
 
 }  // namespace
 
 void AddRenderCommand(CLI::App& app) {
     auto o = std::make_shared<RenderOptions>();
-    CLI::App* cmd = app.add_subcommand("render", "Render a scene locally (no server) to EXR");
+    CLI::App* cmd = app.add_subcommand("render", "Render a scene locally (no server) to images");
     cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
     cmd->add_option("-o,--output", o->output,
-                    "Output EXR path (a PNG preview is written beside it)")
+                    "Output image, format by extension: .exr (a PNG preview is written beside "
+                    "it), or .png, .jpg, .jpeg, .tif, .tiff, .hdr (the full EXR is written "
+                    "beside it, same stem)")
         ->required();
     cmd->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::PositiveNumber);
     cmd->add_option("--integrator", o->integrator,

@@ -2,13 +2,16 @@
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "io/image_io.h"
 
@@ -77,6 +80,104 @@ TEST_F(CliTest, RendersAnExrWithMetadataAndAPreview) {
     EXPECT_EQ(meta["tessera:integrator"], "path");
     EXPECT_FALSE(meta["tessera:render_time_s"].empty());
     EXPECT_TRUE(fs::exists(dir_ / "f.png"));
+}
+
+// The first bytes of a file, to tell formats apart by their magic numbers.
+std::string Head(const fs::path& path, size_t n) {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes(n, '\0');
+    in.read(bytes.data(), static_cast<std::streamsize>(n));
+    bytes.resize(static_cast<size_t>(in.gcount()));
+    return bytes;
+}
+
+const std::string kPngMagic = "\x89PNG\r\n\x1a\n";
+const std::string kJpegMagic = "\xff\xd8\xff";
+const std::string kExrMagic = "\x76\x2f\x31\x01";
+const std::string kTiny = " --spp 1 --width 8 --height 6 -q";
+
+// The EXR beside a display image keeps the float data: every AOV and the metadata.
+void ExpectFullExr(const fs::path& path) {
+    EXPECT_EQ(Head(path, 4), kExrMagic) << path;
+    ImageMetadata meta;
+    Image image = ReadImage(path.string(), &meta);
+    EXPECT_EQ(image.width, 8);
+    EXPECT_EQ(image.height, 6);
+    for (const char* channel : {"R", "G", "B", "A", "albedo.R", "N.Z", "Z"})
+        EXPECT_GE(image.ChannelIndex(channel), 0) << channel;
+    EXPECT_EQ(meta["tessera:spp"], "1");
+}
+
+TEST_F(CliTest, PngOutputIsAPngWithTheExrBesideIt) {
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.png").string() + kTiny)) << err_;
+    EXPECT_EQ(Head(dir_ / "x.png", 8), kPngMagic);
+    ExpectFullExr(dir_ / "x.exr");
+}
+
+TEST_F(CliTest, JpegOutputIsAJpegWithTheExrBesideIt) {
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.jpg").string() + kTiny)) << err_;
+    EXPECT_EQ(Head(dir_ / "x.jpg", 3), kJpegMagic);
+    ExpectFullExr(dir_ / "x.exr");
+    EXPECT_FALSE(fs::exists(dir_ / "x.png"));
+}
+
+TEST_F(CliTest, ExrOutputHasAPngPreviewBesideIt) {
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.exr").string() + kTiny)) << err_;
+    ExpectFullExr(dir_ / "x.exr");
+    EXPECT_EQ(Head(dir_ / "x.png", 8), kPngMagic);
+}
+
+// Refused output: exit status 2, a message saying why, and no file but the captured
+// stdout and stderr anywhere under `dir`.
+void ExpectRefused(int status, const std::string& err, const std::string& why,
+                   const fs::path& dir) {
+    EXPECT_EQ(status, 2) << err;
+    EXPECT_NE(err.find(why), std::string::npos) << err;
+    std::vector<std::string> written;
+    for (const auto& entry : fs::recursive_directory_iterator(dir))
+        if (entry.is_regular_file() && entry.path().extension() != ".txt")
+            written.push_back(entry.path().string());
+    EXPECT_TRUE(written.empty()) << written.front();
+}
+
+TEST_F(CliTest, UnknownExtensionIsRefusedBeforeRendering) {
+    int status = Run("render " + kFurnace + " -o " + (dir_ / "x.bmp").string() + kTiny);
+    ExpectRefused(status, err_, "unknown image extension", dir_);
+    EXPECT_NE(err_.find(".exr, .png, .jpg, .jpeg, .tif, .tiff, .hdr"), std::string::npos) << err_;
+    EXPECT_EQ(err_.find("spp, integrator"), std::string::npos) << "the scene was loaded: " << err_;
+}
+
+TEST_F(CliTest, MissingOutputFolderIsRefusedBeforeRendering) {
+    const fs::path folder = dir_ / "missing";
+    // A big render: refusing it must not wait for it.
+    auto start = std::chrono::steady_clock::now();
+    int status = Run("render " + kFurnace + " -o " + (folder / "x.png").string() +
+                     " --spp 4096 --width 512 --height 512 -q");
+    double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ExpectRefused(status, err_, "output folder " + folder.string() + " does not exist", dir_);
+    EXPECT_LT(seconds, 10.0);
+    EXPECT_FALSE(fs::exists(folder));
+}
+
+TEST_F(CliTest, OutputPathThatIsADirectoryIsRefused) {
+    fs::create_directories(dir_ / "taken.exr");
+    int status = Run("render " + kFurnace + " -o " + (dir_ / "taken.exr").string() + kTiny);
+    ExpectRefused(status, err_, "output path " + (dir_ / "taken.exr").string() + " is a directory",
+                  dir_);
+    // The file beside -o counts too: -o x.png also writes x.exr.
+    status = Run("render " + kFurnace + " -o " + (dir_ / "taken.png").string() + kTiny);
+    ExpectRefused(status, err_, "is a directory", dir_);
+}
+
+TEST_F(CliTest, UnwritableOutputFolderIsRefused) {
+    if (::geteuid() == 0) GTEST_SKIP() << "root may write anywhere";
+    const fs::path folder = dir_ / "locked";
+    fs::create_directories(folder);
+    fs::permissions(folder, fs::perms::owner_read | fs::perms::owner_exec);
+    int status = Run("render " + kFurnace + " -o " + (folder / "x.exr").string() + kTiny);
+    fs::permissions(folder, fs::perms::owner_all);
+    ExpectRefused(status, err_, "is not writable", dir_);
 }
 
 TEST_F(CliTest, SameSeedSamePixelsWhateverTheThreadCount) {

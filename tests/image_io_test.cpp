@@ -12,8 +12,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace tessera {
 namespace {
@@ -161,6 +163,52 @@ TEST_F(ImageIoTest, PngPreviewNeedsRgb) {
     EXPECT_TRUE(Files().empty());
 }
 
+TEST(ImageFormatTest, ExtensionDecidesTheFormat) {
+    EXPECT_EQ(FormatFromPath("out/a.exr"), ImageFormat::kExr);
+    EXPECT_EQ(FormatFromPath("a.PNG"), ImageFormat::kPng);
+    EXPECT_EQ(FormatFromPath("a.jpg"), ImageFormat::kJpeg);
+    EXPECT_EQ(FormatFromPath("a.JPEG"), ImageFormat::kJpeg);
+    EXPECT_EQ(FormatFromPath("a.tif"), ImageFormat::kTiff);
+    EXPECT_EQ(FormatFromPath("a.tiff"), ImageFormat::kTiff);
+    EXPECT_EQ(FormatFromPath("a.hdr"), ImageFormat::kHdr);
+    EXPECT_EQ(FormatFromPath("a.bmp"), std::nullopt);
+    EXPECT_EQ(FormatFromPath("exr"), std::nullopt);
+    EXPECT_EQ(FormatFromPath("a.exr.tmp"), std::nullopt);
+    EXPECT_EQ(SupportedImageExtensions(), ".exr, .png, .jpg, .jpeg, .tif, .tiff, .hdr");
+}
+
+TEST_F(ImageIoTest, RgbFormatsHoldTheColourChannels) {
+    Image image;
+    image.width = 2;
+    image.height = 1;
+    image.channels = {"R", "G", "B", "A", "Z"};
+    image.pixels = {0.5f, 0.25f, 2.0f, 1, 7, 0.125f, 1.0f, 0.0f, 1, 9};
+    // Float formats keep linear values (HDR's RGBE shares one exponent per pixel).
+    for (const char* name : {"linear.tif", "linear.hdr"}) {
+        WriteRgbImage(PathOf(name), image, *FormatFromPath(name));
+        const Image read = ReadImage(PathOf(name));
+        ASSERT_EQ(read.NumChannels(), 3) << name;
+        EXPECT_NEAR(read.At(0, 0, 0), 0.5f, 0.01f) << name;
+        EXPECT_NEAR(read.At(0, 0, 2), 2.0f, 0.02f) << name;
+        EXPECT_NEAR(read.At(1, 0, 1), 1.0f, 0.01f) << name;
+    }
+    // JPEG is 8-bit sRGB like the PNG preview, within its compression error; one flat
+    // colour, as JPEG shares chroma between neighbouring pixels.
+    Image flat;
+    flat.width = flat.height = 8;
+    flat.channels = {"R", "G", "B"};
+    for (int i = 0; i < 64; ++i) flat.pixels.insert(flat.pixels.end(), {0.2158605f, 2.0f, 0.0f});
+    WriteRgbImage(PathOf("display.jpg"), flat, ImageFormat::kJpeg);
+    const Image read = ReadImage(PathOf("display.jpg"));
+    ASSERT_EQ(read.NumChannels(), 3);
+    EXPECT_NEAR(read.At(3, 3, 0), 128 / 255.0f, 0.03f);
+    EXPECT_NEAR(read.At(3, 3, 1), 1.0f, 0.03f);  // clamped
+    EXPECT_NEAR(read.At(3, 3, 2), 0.0f, 0.03f);
+    std::vector<std::string> files = Files();
+    std::sort(files.begin(), files.end());
+    EXPECT_EQ(files, (std::vector<std::string>{"display.jpg", "linear.hdr", "linear.tif"}));
+}
+
 TEST_F(ImageIoTest, RewritingReplacesTheFile) {
     Image image = MakeRenderLikeImage(3, 3);
     const std::string path = PathOf("again.exr");
@@ -199,6 +247,17 @@ TEST_F(ImageIoTest, FailedRenameRemovesTheTemporary) {
     const std::string path = PathOf("taken.exr");
     ExpectThrowsNaming([&] { WriteExr(path, MakeRenderLikeImage(2, 2), {}); }, path);
     EXPECT_EQ(Files(), std::vector<std::string>{"taken.exr"});
+}
+
+TEST_F(ImageIoTest, FailedRenameRemovesTheTemporaryInEveryFormat) {
+    const Image image = MakeRenderLikeImage(2, 2);
+    for (const char* name : {"taken.png", "taken.jpg", "taken.tif", "taken.hdr"}) {
+        fs::create_directories(dir_ / name / "inside");
+        ExpectThrowsNaming([&] { WriteRgbImage(PathOf(name), image, *FormatFromPath(name)); },
+                           PathOf(name));
+    }
+    EXPECT_EQ(Files().size(), 4u);
+    for (const std::string& file : Files()) EXPECT_TRUE(fs::is_directory(dir_ / file)) << file;
 }
 
 TEST_F(ImageIoTest, ReadingMissingOrGarbageFileThrowsNamingIt) {

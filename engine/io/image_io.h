@@ -3,6 +3,7 @@
 // Image files through OpenImageIO. Only this module includes OpenImageIO headers.
 
 #include <map>
+#include <optional>
 #include <string>
 
 #include "film/image.h"
@@ -12,11 +13,24 @@ namespace tessera {
 // Extra header attributes written into the EXR (e.g. "tessera:spp" -> "64").
 using ImageMetadata = std::map<std::string, std::string>;
 
+// The file formats a render can be written as. Only kExr keeps every channel and the
+// metadata; the others hold R, G, B alone.
+enum class ImageFormat { kExr, kPng, kJpeg, kTiff, kHdr };
+
+// The format that `path`'s extension names, case-insensitively: .exr, .png, .jpg, .jpeg,
+// .tif, .tiff, .hdr. nullopt for any other extension or none.
+std::optional<ImageFormat> FormatFromPath(const std::string& path);
+// The extensions FormatFromPath knows, for messages: ".exr, .png, ...".
+std::string SupportedImageExtensions();
+
 // Writes a float (32-bit) EXR with all of the image's channels. The file appears
 // atomically: written to a temporary name in the same folder, then renamed. Throws
 // std::runtime_error with the path and OpenImageIO's message on failure.
 void WriteExr(const std::string& path, const Image& image, const ImageMetadata& metadata);
-// Writes an 8-bit sRGB PNG of the R, G, B channels (clamped to [0,1]), atomically.
+// Writes the R, G, B channels as `format` (not kExr), atomically: 8-bit sRGB (clamped to
+// [0,1]) for PNG and JPEG, linear float for TIFF and HDR.
+void WriteRgbImage(const std::string& path, const Image& image, ImageFormat format);
+// WriteRgbImage as an 8-bit sRGB PNG.
 void WritePngPreview(const std::string& path, const Image& image);
 // Reads any image OpenImageIO understands, as float, with its channel names. The order
 // of channels is the file's, not necessarily the one written (OpenEXR sorts them by name;
