@@ -45,6 +45,12 @@ std::vector<BundleEntry> CollectBundle(const std::string& scene_path) {
             throw std::runtime_error("'" + rel + "' is outside the scene's folder " +
                                      root.string() +
                                      ": a bundle holds only files beside or below the scene");
+        // The farm loads the scene sandboxed (SceneLoadOptions), which refuses any "..".
+        for (const fs::path& part : fs::path(rel))
+            if (part == "..")
+                throw std::runtime_error("'" + rel +
+                                         "' contains '..': a scene sent to the farm may refer "
+                                         "to its files only by paths without '..'");
         if (std::string err = ValidateBundlePath(bundle_path); !err.empty())
             throw std::runtime_error(err);
         bool seen = false;

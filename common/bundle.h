@@ -24,8 +24,8 @@ struct BundleEntry {
 };
 
 // The scene file (first) and every file it references. Throws SceneError if the scene
-// does not parse, and std::runtime_error if a reference leaves the scene's folder or
-// a file cannot be read.
+// does not parse, and std::runtime_error if a reference leaves the scene's folder, uses
+// ".." (which the farm's sandboxed load refuses), or a file cannot be read.
 std::vector<BundleEntry> CollectBundle(const std::string& scene_path);
 
 }  // namespace tessera

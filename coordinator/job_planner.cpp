@@ -81,8 +81,12 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
         if (!IsNameChar(c))
             Invalid("job name '" + spec.name() + "' may contain only A-Z a-z 0-9 . _ -");
     if (spec.scene_path().empty()) Invalid("scene_path is empty");
+    // Every number is range-checked before any arithmetic on it.
     if (spec.frame_start() < 0)
         Invalid(fmt::format("frame_start {} is negative", spec.frame_start()));
+    if (spec.frame_start() > kMaxFrameNumber || spec.frame_end() > kMaxFrameNumber)
+        Invalid(fmt::format("frames {}-{} are beyond the last frame number allowed, {}",
+                            spec.frame_start(), spec.frame_end(), kMaxFrameNumber));
     if (spec.frame_end() < spec.frame_start())
         Invalid(fmt::format("frame_end {} is before frame_start {}", spec.frame_end(),
                             spec.frame_start()));
@@ -90,6 +94,9 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
     if (frames > limits_.max_frames)
         TooLarge(fmt::format("{} frames requested; this coordinator allows at most {} per job",
                              frames, limits_.max_frames));
+    if (spec.priority() < -kMaxPriority || spec.priority() > kMaxPriority)
+        Invalid(fmt::format("priority {} is not between {} and {}", spec.priority(), -kMaxPriority,
+                            kMaxPriority));
     if (spec.files_size() > kMaxFiles)
         TooLarge(fmt::format("bundle has {} files; at most {} are allowed", spec.files_size(),
                              kMaxFiles));
@@ -104,14 +111,17 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
         if (!IsSha256Hex(f.hash()))
             Invalid("bundle file '" + f.path() + "' has a malformed hash '" +
                     f.hash().substr(0, 80) + "'");
+        // Compared before adding: declared sizes are up to 2^64 - 1 and could wrap the sum.
+        if (f.size() > limits_.max_bundle_bytes - total)
+            TooLarge(
+                fmt::format("bundle holds more than {} bytes; this coordinator allows at most "
+                            "{} MiB",
+                            limits_.max_bundle_bytes, limits_.max_bundle_bytes >> 20));
         total += f.size();
         has_scene |= f.path() == spec.scene_path();
     }
     if (!has_scene)
         Invalid("scene_path '" + spec.scene_path() + "' is not among the bundle's files");
-    if (total > limits_.max_bundle_bytes)
-        TooLarge(fmt::format("bundle holds {} bytes; this coordinator allows at most {} MiB", total,
-                             limits_.max_bundle_bytes >> 20));
     for (const v1::BundleFile& f : spec.files()) {
         std::optional<uint64_t> size = blobs_.Size(f.hash());
         if (!size)
@@ -185,7 +195,11 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     }
     LoadedScene loaded;
     try {
-        loaded = LoadSceneFile((bundle / spec.scene_path()).string(), overrides);
+        SceneLoadOptions sandbox;
+        sandbox.sandboxed = true;
+        sandbox.sandbox_root = bundle.string();
+        sandbox.max_file_bytes = limits_.max_bundle_bytes;
+        loaded = LoadSceneFile((bundle / spec.scene_path()).string(), overrides, sandbox);
     } catch (const SceneError& e) {
         Invalid(e.what());
     } catch (const std::invalid_argument& e) {

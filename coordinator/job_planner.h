@@ -16,10 +16,16 @@
 
 namespace tessera {
 
+// Frame numbers a job may use, [0, kMaxFrameNumber]: bounded well below INT_MAX so that
+// no loop over a job's frames, nor any sum of frame numbers, can overflow.
+constexpr int kMaxFrameNumber = 10000000;
+// A job's priority lies in [-kMaxPriority, kMaxPriority] (higher runs first).
+constexpr int kMaxPriority = 1000;
+
 struct PlannerLimits {
     int max_resolution = 16384;  // per axis
     int max_spp = 65536;
-    int max_frames = 10000;
+    int max_frames = 10000;  // per job
     uint64_t max_bundle_bytes = uint64_t(1024) << 20;
     int64_t max_tasks = 1000000;  // per job, all frames
 };
@@ -48,8 +54,9 @@ class JobPlanner {
     // `jobs_dir` holds the jobs' bundles; stale staging folders in it are removed.
     JobPlanner(const BlobStore& blobs, std::string jobs_dir, PlannerLimits limits);
 
-    // Throws CoordinatorError: INVALID_ARGUMENT (malformed spec, unsafe path, scene that
-    // does not load, with the loader's message), NOT_FOUND (a blob never uploaded,
+    // Throws CoordinatorError: INVALID_ARGUMENT (malformed spec, a number out of range,
+    // unsafe path, scene that does not load, with the loader's message; the scene is
+    // loaded sandboxed in its bundle, SceneLoadOptions), NOT_FOUND (a blob never uploaded,
     // naming its path and hash), RESOURCE_EXHAUSTED (over a limit).
     PlannedJob Plan(const v1::JobSpec& spec) const;
 

@@ -263,7 +263,12 @@ std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
     }
     auto job = std::make_shared<Job>();
     try {
-        job->loaded = LoadSceneFile(scene_path.string(), FromProto(spec.options()));
+        // The bundle is untrusted input: every file the scene names must be a regular
+        // file inside it.
+        SceneLoadOptions sandbox;
+        sandbox.sandboxed = true;
+        sandbox.sandbox_root = (jobs_dir_ / job_id).string();
+        job->loaded = LoadSceneFile(scene_path.string(), FromProto(spec.options()), sandbox);
     } catch (const std::exception& e) {
         throw std::runtime_error(fmt::format("loading the scene failed: {}", e.what()));
     }

@@ -1,6 +1,7 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <stdexcept>
@@ -18,6 +19,18 @@ namespace {
 // Relative tolerance on texture albedos: an image saved at exactly 1 may read back a hair
 // above it.
 constexpr float kAlbedoSlack = 1e-4f;
+
+// A reader's message about a file; for a sandboxed scene without the bundle root, so that
+// files are named relative to the bundle, never by their path on this machine.
+std::string ReaderMessage(const std::exception& e, const std::string& sandbox_root) {
+    std::string m = e.what();
+    if (sandbox_root.empty()) return m;
+    const std::string prefix = sandbox_root + "/";
+    for (size_t at; (at = m.find(prefix)) != std::string::npos;) m.erase(at, prefix.size());
+    for (size_t at; (at = m.find(sandbox_root)) != std::string::npos;)
+        m.replace(at, sandbox_root.size(), "<bundle>");
+    return m;
+}
 
 // A shape's object-space mesh (everything but spheres); mesh files come from `files`.
 TriangleMesh ShapeMesh(const ShapeRecord& s, const std::map<std::string, TriangleMesh>& files) {
@@ -39,14 +52,14 @@ TriangleMesh ShapeMesh(const ShapeRecord& s, const std::map<std::string, Triangl
 }
 
 // Loads each mesh file once, however many shapes use it.
-void LoadMeshFiles(const std::vector<ShapeRecord>& shapes,
+void LoadMeshFiles(const std::vector<ShapeRecord>& shapes, const std::string& sandbox_root,
                    std::map<std::string, TriangleMesh>* files) {
     for (const ShapeRecord& s : shapes) {
         if (s.kind != ShapeKind::kMesh || files->count(s.path)) continue;
         try {
             (*files)[s.path] = LoadMeshFile(s.path);
         } catch (const std::exception& e) {
-            throw SceneError(s.path_where, e.what());
+            throw SceneError(s.path_where, ReaderMessage(e, sandbox_root));
         }
     }
 }
@@ -69,7 +82,8 @@ std::vector<TriangleMesh> MakeMeshes(const std::vector<ShapeRecord>& shapes,
     return out;
 }
 
-std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records) {
+std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records,
+                                     const std::string& sandbox_root) {
     std::vector<TextureRef> out;
     for (const TextureRecord& t : records) {
         switch (t.kind) {
@@ -83,7 +97,7 @@ std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records) 
                 try {
                     out.push_back(MakeImageTexture(t.path, t.srgb));
                 } catch (const std::exception& e) {
-                    throw SceneError(t.path_where, e.what());
+                    throw SceneError(t.path_where, ReaderMessage(e, sandbox_root));
                 }
                 break;
         }
@@ -159,63 +173,40 @@ std::unique_ptr<Camera> MakeCamera(const CameraRecord& c, Vec2i resolution) {
 
 RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) {
     auto fail = [](const std::string& what) { throw SceneError("command line", what); };
+    // The same ranges as the file's "render" block: overrides come from farm clients too,
+    // and a value near INT_MAX would overflow what is sized by it.
+    auto ranged = [&](const std::optional<int>& v, int lo, int hi, const char* name, int* out) {
+        if (!v) return;
+        if (*v < lo || *v > hi)
+            fail(std::string(name) + " must be between " + std::to_string(lo) + " and " +
+                 std::to_string(hi) + ", got " + std::to_string(*v));
+        *out = *v;
+    };
     if (o.integrator) {
         const auto& known = KnownIntegrators();
         if (std::find(known.begin(), known.end(), *o.integrator) == known.end())
             fail("unknown integrator '" + *o.integrator + "'");
         s.integrator = *o.integrator;
     }
-    if (o.spp) {
-        if (*o.spp <= 0) fail("spp must be positive");
-        s.spp = *o.spp;
-    }
-    if (o.max_depth) {
-        if (*o.max_depth < 0) fail("max_depth must not be negative");
-        s.max_depth = *o.max_depth;
-    }
-    if (o.tile_size) {
-        if (*o.tile_size <= 0) fail("tile_size must be positive");
-        s.tile_size = *o.tile_size;
-    }
-    if (o.frame) {
-        if (*o.frame < 0) fail("frame must not be negative");
-        s.frame = *o.frame;
-    }
-    if (o.width) {
-        if (*o.width <= 0) fail("width must be positive");
-        s.resolution.x = *o.width;
-    }
-    if (o.height) {
-        if (*o.height <= 0) fail("height must be positive");
-        s.resolution.y = *o.height;
-    }
+    ranged(o.spp, 1, 1 << 24, "spp", &s.spp);
+    ranged(o.max_depth, 0, 100000, "max_depth", &s.max_depth);
+    ranged(o.tile_size, 1, 65536, "tile_size", &s.tile_size);
+    ranged(o.frame, 0, 1 << 30, "frame", &s.frame);
+    ranged(o.width, 1, 65536, "width", &s.resolution.x);
+    ranged(o.height, 1, 65536, "height", &s.resolution.y);
     if (o.seed) s.seed = *o.seed;
     if (o.sampler) s.sampler = *o.sampler;
     if (o.irradiance_cache) s.irradiance.enabled = *o.irradiance_cache;
-    if (o.photons_global) {
-        if (*o.photons_global < 0) fail("photon counts must not be negative");
-        s.photon.global_photons = *o.photons_global;
-    }
-    if (o.photons_caustic) {
-        if (*o.photons_caustic < 0) fail("photon counts must not be negative");
-        s.photon.caustic_photons = *o.photons_caustic;
-    }
-    if (o.photon_batches) {
-        if (*o.photon_batches < 1) fail("photon batches must be at least 1");
-        s.photon.batches = *o.photon_batches;
-    }
+    ranged(o.photons_global, 0, 1 << 30, "photons", &s.photon.global_photons);
+    ranged(o.photons_caustic, 0, 1 << 30, "caustic photons", &s.photon.caustic_photons);
+    ranged(o.photon_batches, 1, 4096, "photon batches", &s.photon.batches);
     if (o.ic_accuracy) {
-        if (!(*o.ic_accuracy > 0)) fail("cache accuracy must be positive");
+        if (!(*o.ic_accuracy > 0) || !std::isfinite(*o.ic_accuracy))
+            fail("cache accuracy must be positive and finite");
         s.irradiance.accuracy = *o.ic_accuracy;
     }
-    if (o.ic_samples) {
-        if (*o.ic_samples < 4) fail("the cache needs at least 4 hemisphere samples");
-        s.irradiance.hemisphere_samples = *o.ic_samples;
-    }
-    if (o.ic_passes) {
-        if (*o.ic_passes < 0 || *o.ic_passes > 8) fail("cache passes must be between 0 and 8");
-        s.irradiance.passes = *o.ic_passes;
-    }
+    ranged(o.ic_samples, 4, 1 << 20, "cache hemisphere samples", &s.irradiance.hemisphere_samples);
+    ranged(o.ic_passes, 0, 8, "cache passes", &s.irradiance.passes);
     if (o.ic_gradients) s.irradiance.gradients = *o.ic_gradients;
     if (o.debug) s.debug = *o.debug;
     return s;
@@ -224,15 +215,16 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
 LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settings) {
     // Everything that reads files or can reject a value, before the Scene exists.
     std::map<std::string, TriangleMesh> files;
-    LoadMeshFiles(records.shapes, &files);
-    for (const ObjectRecord& o : records.objects) LoadMeshFiles(o.shapes, &files);
+    LoadMeshFiles(records.shapes, records.sandbox_root, &files);
+    for (const ObjectRecord& o : records.objects)
+        LoadMeshFiles(o.shapes, records.sandbox_root, &files);
     std::vector<TriangleMesh> meshes = MakeMeshes(records.shapes, files);
     std::vector<std::vector<TriangleMesh>> object_meshes;
     for (const ObjectRecord& o : records.objects)
         object_meshes.push_back(MakeMeshes(o.shapes, files));
     files.clear();
 
-    std::vector<TextureRef> textures = MakeTextures(records.textures);
+    std::vector<TextureRef> textures = MakeTextures(records.textures, records.sandbox_root);
     std::vector<std::unique_ptr<Material>> materials;
     for (const MaterialRecord& m : records.materials)
         materials.push_back(MakeMaterial(m, textures, records));

@@ -5,8 +5,9 @@
 
 namespace tessera {
 
-LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides) {
-    SceneRecords records = ParseSceneFile(path);
+LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides,
+                          const SceneLoadOptions& options) {
+    SceneRecords records = ParseSceneFile(path, options);
     RenderSettings settings = ApplyRenderOverrides(records.render, overrides);
     return BuildScene(records, settings);
 }

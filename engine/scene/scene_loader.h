@@ -5,6 +5,7 @@
 // unknown or unused key, or unreadable referenced file throws a SceneError naming the
 // file and the JSON path (or line and column for a syntax error).
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,10 +20,27 @@ struct LoadedScene {
     RenderSettings settings;
 };
 
+// How files are read. The defaults suit a person's own scenes (the CLI): references may
+// be absolute or leave the scene's folder.
+struct SceneLoadOptions {
+    // For scenes from a job's bundle (coordinator, workers), which strangers wrote: every
+    // referenced file must be written as a relative path without "..", lie inside
+    // `sandbox_root` with no symbolic link on the way, and be a regular file; messages
+    // name files relative to the root, never by their path on this machine, and do not
+    // tell whether a file outside the bundle exists.
+    bool sandboxed = false;
+    // The bundle's root; empty: the scene file's own folder.
+    std::string sandbox_root;
+    // The largest scene or referenced file read (checked before reading it), so that a
+    // huge file cannot stall a load.
+    uint64_t max_file_bytes = uint64_t(1) << 30;
+};
+
 // Settings come from the file's "render" block with `overrides` applied on top
 // (resolution before the camera is built). Relative paths resolve against the
 // scene file's folder.
-LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides = {});
+LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides = {},
+                          const SceneLoadOptions& options = {});
 
 // The files a scene references (meshes, image textures), as written in the scene,
 // relative to the scene file's folder; each listed once, in order of appearance.

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 
 #include "core/error.h"
@@ -97,8 +98,49 @@ int ParseReference(const JsonValue& v, const std::map<std::string, int>& names,
 // ---------------------------------------------------------------------------------------
 // Context shared by the section parsers
 
+// Why the file `rel` (relative to the bundle `root`) may not be read as part of the
+// bundle; empty if it may. Each component is checked without following links, so that
+// a link cannot lead outside the bundle; only regular files (no devices, FIFOs or
+// folders, which a reader could block on or read forever) of at most `max_bytes`.
+std::string CheckBundleFile(const fs::path& root, const fs::path& rel, uint64_t max_bytes) {
+    fs::path p = root;
+    fs::file_status st;
+    std::error_code ec;
+    for (const fs::path& part : rel) {
+        if (part.empty() || part == ".") continue;
+        if (p != root && !fs::is_directory(st)) return "does not exist in the bundle";
+        p /= part;
+        st = fs::symlink_status(p, ec);
+        if (ec || !fs::exists(st)) return "does not exist in the bundle";
+        if (fs::is_symlink(st))
+            return "is or passes through a symbolic link; a bundle holds only regular files";
+    }
+    if (!fs::is_regular_file(st)) return "is not a regular file";
+    const uintmax_t size = fs::file_size(p, ec);
+    if (ec) return "cannot be read";
+    if (size > max_bytes)
+        return "is " + std::to_string(size) + " bytes, over the limit of " +
+               std::to_string(max_bytes);
+    if (!std::ifstream(p, std::ios::binary)) return "cannot be read";
+    return {};
+}
+
+// Whether a reference as written may name a file of the bundle: relative, without "..".
+// Decided on the text alone, so that the answer says nothing about the machine's files.
+bool StaysInBundle(const std::string& given) {
+    fs::path p(given);
+    if (p.is_absolute() || p.has_root_name() || p.has_root_directory()) return false;
+    for (const fs::path& part : p)
+        if (part == "..") return false;
+    return true;
+}
+
 struct Context {
     fs::path base_dir;
+    // Set when sandboxed (SceneLoadOptions): the bundle root, and the scene's folder
+    // relative to it.
+    fs::path sandbox_root, scene_dir_in_bundle;
+    uint64_t max_file_bytes = 0;
     std::map<std::string, int> textures, materials, objects;
     // Files referenced so far, as (section, as written, resolved).
     struct FileRef {
@@ -107,21 +149,41 @@ struct Context {
     mutable std::vector<FileRef> files;
     std::string section;  // the top-level key being parsed
 
-    // A file the scene refers to, resolved against the scene's folder; must be readable.
+    // A file the scene refers to, resolved against the scene's folder; must be a readable
+    // regular file. The only place where the parser looks at the file system.
     std::string ResolveFile(const JsonValue& v, const std::string& what) const {
         std::string given = v.AsString();
         if (given.empty()) v.Fail("empty file name");
-        fs::path p(given);
-        if (p.is_relative()) p = base_dir / p;
-        p = p.lexically_normal();
-        std::string resolved = p.string();
-        std::string shown = given == resolved ? "'" + given + "'"
-                                              : "'" + given + "' (resolved to '" + resolved + "')";
-        std::error_code ec;
-        if (!fs::exists(p, ec)) v.Fail(what + " " + shown + " does not exist");
-        if (fs::is_directory(p, ec)) v.Fail(what + " " + shown + " is a directory");
-        std::ifstream probe(p, std::ios::binary);
-        if (!probe) v.Fail("cannot read " + what + " " + shown);
+        const std::string shown = what + " '" + given + "'";
+        std::string resolved;
+        if (!sandbox_root.empty()) {
+            if (!StaysInBundle(given))
+                v.Fail(shown +
+                       " is not in the scene's bundle: a bundle's scene may refer only to "
+                       "relative paths without '..'");
+            fs::path rel = (scene_dir_in_bundle / given).lexically_normal();
+            if (std::string why = CheckBundleFile(sandbox_root, rel, max_file_bytes); !why.empty())
+                v.Fail(shown + " " + why);
+            resolved = (sandbox_root / rel).string();
+        } else {
+            fs::path p(given);
+            if (p.is_relative()) p = base_dir / p;
+            p = p.lexically_normal();
+            resolved = p.string();
+            const std::string at =
+                given == resolved ? shown : shown + " (resolved to '" + resolved + "')";
+            std::error_code ec;
+            if (!fs::exists(p, ec)) v.Fail(at + " does not exist");
+            if (fs::is_directory(p, ec)) v.Fail(at + " is a directory");
+            // Before opening: opening a FIFO blocks, and a device can be read forever.
+            if (!fs::is_regular_file(p, ec)) v.Fail(at + " is not a regular file");
+            const uintmax_t size = fs::file_size(p, ec);
+            if (!ec && size > max_file_bytes)
+                v.Fail(at + " is " + std::to_string(size) + " bytes, over the limit of " +
+                       std::to_string(max_file_bytes));
+            std::ifstream probe(p, std::ios::binary);
+            if (!probe) v.Fail("cannot read " + at);
+        }
         files.push_back({section, given, resolved});
         return resolved;
     }
@@ -643,13 +705,13 @@ LightRecord ParseLight(const JsonValue& v) {
 // ---------------------------------------------------------------------------------------
 // the document
 
-SceneRecords ParseDocument(const JsonDocument& doc, const std::string& path) {
+// `ctx` holds where files are looked up; `shown` names the scene file in messages.
+SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Context ctx) {
     JsonValue root_v = doc.Root();
     JsonObject root = root_v.AsObject();
     SceneRecords rec;
-    rec.file = path;
-    Context ctx;
-    ctx.base_dir = fs::path(path).parent_path();
+    rec.file = shown;
+    rec.sandbox_root = ctx.sandbox_root.string();
 
     auto render = root.Get("render");
     JsonValue camera = root.Required("camera");
@@ -704,14 +766,50 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& path) {
     return rec;
 }
 
+// A scene from a bundle: the scene file itself passes the same checks as its references,
+// and is named relative to the bundle root.
+SceneRecords ParseSandboxedSceneFile(const std::string& path, const SceneLoadOptions& options) {
+    const fs::path scene = fs::absolute(path).lexically_normal();
+    fs::path root = options.sandbox_root.empty()
+                        ? scene.parent_path()
+                        : fs::absolute(options.sandbox_root).lexically_normal();
+    if (!root.has_filename()) root = root.parent_path();  // a trailing '/'
+    const fs::path rel = scene.lexically_relative(root);
+    const std::string shown = rel.generic_string();
+    if (rel.empty() || !StaysInBundle(shown))
+        throw std::invalid_argument("the scene file is not inside its sandbox root");
+    if (std::string why = CheckBundleFile(root, rel, options.max_file_bytes); !why.empty())
+        throw SceneError(shown, "scene file " + why);
+    std::ifstream in(scene, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (!in) throw SceneError(shown, "error reading scene file");
+    Context ctx;
+    ctx.base_dir = scene.parent_path();
+    ctx.sandbox_root = root;
+    ctx.scene_dir_in_bundle = rel.parent_path();
+    ctx.max_file_bytes = options.max_file_bytes;
+    return ParseDocument(JsonDocument::Parse(text.str(), shown), shown, std::move(ctx));
+}
+
+Context LocalContext(const std::string& path, uint64_t max_file_bytes) {
+    Context ctx;
+    ctx.base_dir = fs::path(path).parent_path();
+    ctx.max_file_bytes = max_file_bytes;
+    return ctx;
+}
+
 }  // namespace
 
-SceneRecords ParseSceneFile(const std::string& path) {
-    return ParseDocument(JsonDocument::Load(path), path);
+SceneRecords ParseSceneFile(const std::string& path, const SceneLoadOptions& options) {
+    if (options.sandboxed) return ParseSandboxedSceneFile(path, options);
+    return ParseDocument(JsonDocument::Load(path), path,
+                         LocalContext(path, options.max_file_bytes));
 }
 
 SceneRecords ParseSceneText(const std::string& text, const std::string& path) {
-    return ParseDocument(JsonDocument::Parse(text, path), path);
+    return ParseDocument(JsonDocument::Parse(text, path), path,
+                         LocalContext(path, SceneLoadOptions().max_file_bytes));
 }
 
 }  // namespace tessera

@@ -15,6 +15,7 @@
 #include "core/math.h"
 #include "core/transform.h"
 #include "plan/render_settings.h"
+#include "scene/scene_loader.h"
 
 namespace tessera {
 
@@ -112,7 +113,10 @@ struct CameraRecord {
 };
 
 struct SceneRecords {
-    std::string file;
+    std::string file;  // as shown in messages: relative to the bundle root when sandboxed
+    // The bundle root when loaded sandboxed (SceneLoadOptions), else empty: the builder
+    // removes it from readers' messages, which name files by their path on this machine.
+    std::string sandbox_root;
     // The files the scene references (meshes, images) as written in it, each once (the
     // first spelling of each resolved path), in order of appearance in the file.
     std::vector<std::string> referenced_files;
@@ -128,7 +132,7 @@ struct SceneRecords {
 
 // Reads and checks a scene file. Throws SceneError naming the file and JSON pointer of
 // the first problem (or "<file>:<line>:<col>" for a JSON syntax error).
-SceneRecords ParseSceneFile(const std::string& path);
+SceneRecords ParseSceneFile(const std::string& path, const SceneLoadOptions& options = {});
 // Parses scene text as if read from `path` (relative file references resolve against
 // path's folder).
 SceneRecords ParseSceneText(const std::string& text, const std::string& path);
