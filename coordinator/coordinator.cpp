@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 
@@ -27,6 +28,16 @@ std::string EnsureDir(const std::string& dir, const char* what) {
         throw std::runtime_error(fmt::format("cannot create the {} directory {}: {}", what, dir,
                                              ec ? ec.message() : "not a directory"));
     return dir;
+}
+
+// Where the first NaN or infinite value of a tile result is; empty if there is none.
+std::string NonFiniteValue(const std::string& bytes) {
+    const TileResult tile = DecodeTileResult(bytes);
+    for (size_t i = 0; i < tile.data.size(); ++i)
+        if (!std::isfinite(tile.data[i]))
+            return fmt::format("value {} (pixel {}, channel {}) is {}", i, i / TileFilm::kChannels,
+                               i % TileFilm::kChannels, tile.data[i]);
+    return {};
 }
 
 }  // namespace
@@ -133,8 +144,9 @@ std::string Coordinator::FrameFile(const std::string& job_id, int frame, bool pr
 }
 
 void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                               const std::string& result_hash, const std::string& result) {
-    const LeaseCheck check = scheduler_.CheckLease(task_id, lease_id);
+                               const std::string& lease_token, const std::string& result_hash,
+                               const std::string& result) {
+    const LeaseCheck check = scheduler_.CheckLease(worker_id, task_id, lease_id, lease_token);
     const bool inline_result = !result.empty();
     std::string hash = result_hash;
     if (inline_result) {
@@ -156,19 +168,34 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
     }
     const std::string what = inline_result ? "inline result" : "result blob " + hash;
     const std::string stored = inline_result ? std::string() : blobs_.Read(hash);
+    const std::string& bytes = inline_result ? result : stored;
+    const std::string& stage = check.plan->stages[check.stage].name;
     try {
-        CheckTaskResult(*check.plan, check.stage, check.task_index,
-                        inline_result ? result : stored);
+        CheckTaskResult(*check.plan, check.stage, check.task_index, bytes);
     } catch (const std::exception& e) {
-        ThrowError(ErrorCode::kInvalidArgument,
-                   fmt::format("{} is not a result of task {} ({} task {} of {} frame {}): {}",
-                               what, task_id, check.plan->stages[check.stage].name,
-                               check.task_index, check.job_id, check.frame, e.what()));
+        ThrowError(
+            ErrorCode::kInvalidArgument,
+            fmt::format("{} is not a result of task {} ({} task {} of {} frame {}): {}", what,
+                        task_id, stage, check.task_index, check.job_id, check.frame, e.what()));
+    }
+    if (check.stage == check.plan->RenderStageIndex()) {
+        if (const std::string bad = NonFiniteValue(bytes); !bad.empty()) {
+            const std::string message =
+                fmt::format("{} of task {} ({} task {} of {} frame {}) has a non-finite value: {}",
+                            what, task_id, stage, check.task_index, check.job_id, check.frame, bad);
+            try {
+                scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message);
+            } catch (const CoordinatorError& e) {
+                spdlog::warn("task {}: cannot count its non-finite result as a failure: {}",
+                             task_id, e.what());
+            }
+            ThrowError(ErrorCode::kInvalidArgument, message + "; refused, counted as a failure");
+        }
     }
     // Not synced: if a crash loses it, the stage's merge or the frame's assembly notices
     // and the task runs again.
     if (inline_result) blobs_.Put(hash, result, Durability::kRecomputable);
-    scheduler_.Complete(worker_id, task_id, lease_id, hash);
+    scheduler_.Complete(worker_id, task_id, lease_id, lease_token, hash);
 }
 
 }  // namespace tessera

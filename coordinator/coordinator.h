@@ -69,21 +69,26 @@ class Coordinator final : public SchedulerListener {
         return dispatcher_.Wait(worker_id, wait_ms, std::move(done));
     }
     void CancelLeaseWait(uint64_t handle) { dispatcher_.Cancel(handle); }
-    HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id) {
-        return scheduler_.Heartbeat(worker_id, task_id, lease_id);
+    HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                             const std::string& lease_token) {
+        return scheduler_.Heartbeat(worker_id, task_id, lease_id, lease_token);
     }
     // The result comes either inline (`result` non-empty; `result_hash`, if given, must
     // be its SHA-256: INVALID_ARGUMENT otherwise; RESOURCE_EXHAUSTED over
     // kMaxInlineResultBytes), stored as a Durability::kRecomputable blob, or as a blob
     // uploaded first (NOT_FOUND if it is missing). Either way it must be a well-formed
     // result of this task (CheckTaskResult: its tile, photon batch or records;
-    // INVALID_ARGUMENT otherwise). The lease is checked first: a stale one is
-    // FAILED_PRECONDITION and nothing is stored.
+    // INVALID_ARGUMENT otherwise). A tile with a NaN or infinite value is
+    // INVALID_ARGUMENT too, and the task counts as failed on the worker (a renderer
+    // fault, not a transport one). The lease is checked first: a stale one is
+    // FAILED_PRECONDITION, one the caller does not hold LeaseNotHeld, and nothing is
+    // stored.
     void CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                      const std::string& result_hash, const std::string& result = {});
+                      const std::string& lease_token, const std::string& result_hash,
+                      const std::string& result = {});
     void FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                  const std::string& message) {
-        scheduler_.Fail(worker_id, task_id, lease_id, message);
+                  const std::string& lease_token, const std::string& message) {
+        scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message);
     }
 
     // --- Blobs

@@ -30,6 +30,14 @@ int main(int argc, char** argv) {
                    "Failures of one task that fail its job")
         ->capture_default_str()
         ->check(CLI::Range(1, 1000));
+    app.add_option("--max-failures-in-a-row", c.scheduler.max_failures_in_a_row,
+                   "A worker that fails this many tasks in a row is put aside (0: never)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1000000));
+    int64_t put_aside_s = c.scheduler.put_aside_ms / 1000;
+    app.add_option("--put-aside-s", put_aside_s, "How long a failing worker gets no tasks")
+        ->capture_default_str()
+        ->check(CLI::Range(int64_t(1), int64_t(24) * 3600));
     app.add_option("--max-resolution", c.limits.max_resolution, "Largest width or height")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
@@ -52,6 +60,7 @@ int main(int argc, char** argv) {
     CLI11_PARSE(app, argc, argv);
 
     c.limits.max_bundle_bytes = uint64_t(max_bundle_mb) << 20;
+    c.scheduler.put_aside_ms = put_aside_s * 1000;
     spdlog::set_level(spdlog::level::from_str(log_level));
     return tessera::RunServer(o);
 }

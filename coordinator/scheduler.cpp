@@ -2,9 +2,12 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/random.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
+#include <cstring>
 
 #include "errors.h"
 #include "plan/render_plan.h"
@@ -40,6 +43,37 @@ std::string Truncate(std::string s) {
     return s;
 }
 
+// 128 bits from the kernel's CSPRNG, in hex.
+std::string NewLeaseToken() {
+    unsigned char bytes[16];
+    size_t got = 0;
+    while (got < sizeof bytes) {
+        const ssize_t n = getrandom(bytes + got, sizeof bytes - got, 0);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            ThrowError(ErrorCode::kInternal,
+                       std::string("cannot draw a lease token: ") + std::strerror(errno));
+        }
+        got += static_cast<size_t>(n);
+    }
+    static constexpr char kHex[] = "0123456789abcdef";
+    std::string token;
+    for (unsigned char b : bytes) {
+        token += kHex[b >> 4];
+        token += kHex[b & 15];
+    }
+    return token;
+}
+
+// Takes as long whatever the position of the first difference.
+bool ConstantTimeEquals(const std::string& a, const std::string& b) {
+    if (a.size() != b.size()) return false;
+    unsigned char diff = 0;
+    for (size_t i = 0; i < a.size(); ++i)
+        diff |= static_cast<unsigned char>(a[i]) ^ static_cast<unsigned char>(b[i]);
+    return diff == 0;
+}
+
 bool IsFinished(int state) {
     return state == v1::JOB_STATE_DONE || state == v1::JOB_STATE_FAILED ||
            state == v1::JOB_STATE_CANCELLED;
@@ -57,8 +91,10 @@ Scheduler::Scheduler(const std::string& db_path, const SchedulerOptions& options
     const int64_t now = clock_.NowMs();
     last_lease_id_ = store_.GetMeta("last_lease_id", 0);
     for (const WorkerRow& w : store_.Workers()) workers_[w.id] = {w.name, w.threads, now, false};
+    // A lease from before tokens were stored has an empty one: only its worker, which
+    // sends none, may finish it.
     for (const TaskRow& t : store_.LeasedTasks()) {
-        leases_[t.id] = {t.lease_id, t.worker_id, t.job_id, now + options_.lease_ms};
+        leases_[t.id] = {t.lease_id, t.worker_id, t.job_id, now + options_.lease_ms, t.lease_token};
         last_lease_id_ = std::max(last_lease_id_, t.lease_id);
     }
     if (!leases_.empty())
@@ -167,27 +203,34 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         std::lock_guard lock(mu_);
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
-        std::optional<TaskRow> task = store_.NextPendingTask();
-        if (!task) return std::nullopt;
         const int64_t now = clock_.NowMs();
+        if (worker.put_aside_until_ms > now) return std::nullopt;
+        if (worker.put_aside_until_ms != 0) {
+            worker.put_aside_until_ms = 0;
+            spdlog::info("worker '{}' ({}) is back from being put aside", worker.name, worker_id);
+        }
+        std::optional<TaskRow> task = NextTaskFor(wid, now);
+        if (!task) return std::nullopt;
         const std::shared_ptr<const JobInfo> info = Info(task->job_id);
         const std::string job_id = FormatJobId(task->job_id);
         const std::vector<TaskInputRef> inputs = Inputs(*info, *task);
         SqliteTransaction txn(store_.Db());
         const int job_state = store_.JobState(task->job_id).value_or(0);
         const int64_t lease_id = last_lease_id_ + 1;
+        std::string token = NewLeaseToken();
         store_.SetMeta("last_lease_id", lease_id);
-        store_.LeaseTask(task->id, lease_id, wid);
+        store_.LeaseTask(task->id, lease_id, wid, token);
         store_.CountLease(task->job_id, now);
         store_.MarkFrameRendering(task->job_id, task->frame, now);
         const bool frame_started = store_.Db().Changes() == 1;
         txn.Commit();
         last_lease_id_ = lease_id;
-        leases_[task->id] = {lease_id, wid, task->job_id, now + options_.lease_ms};
+        leases_[task->id] = {lease_id, wid, task->job_id, now + options_.lease_ms, token};
 
         out.emplace();
         out->task_id = task->id;
         out->lease_id = lease_id;
+        out->lease_token = std::move(token);
         out->job_id = job_id;
         out->frame = task->frame;
         out->stage = task->stage;
@@ -210,8 +253,51 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
     return out;
 }
 
-HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_id,
-                                    int64_t lease_id) {
+std::optional<TaskRow> Scheduler::NextTaskFor(int64_t wid, int64_t now) {
+    std::optional<TaskRow> task = store_.NextPendingTask();
+    // Another live worker is likelier to succeed; a lone worker retries (the job must
+    // still finish or fail).
+    if (task && task->failed_worker_id == wid && OtherWorkerLive(wid, now))
+        task = store_.NextPendingTaskAvoiding(wid);
+    return task;
+}
+
+bool Scheduler::OtherWorkerLive(int64_t wid, int64_t now) const {
+    for (const auto& [id, w] : workers_)
+        if (id != wid && !w.silent && now - w.last_seen_ms <= options_.lease_ms &&
+            w.put_aside_until_ms <= now)
+            return true;
+    return false;
+}
+
+void Scheduler::CountWorkerFailure(int64_t wid, Worker& worker, int64_t now) {
+    if (options_.max_failures_in_a_row <= 0) return;
+    if (++worker.failures_in_a_row < options_.max_failures_in_a_row) return;
+    worker.failures_in_a_row = 0;
+    worker.put_aside_until_ms = now + options_.put_aside_ms;
+    ++times_put_aside_;
+    spdlog::warn("worker '{}' ({}) failed {} tasks in a row: put aside, no leases for {} s",
+                 worker.name, FormatWorkerId(wid), options_.max_failures_in_a_row,
+                 options_.put_aside_ms / 1000);
+}
+
+std::vector<std::string> Scheduler::WorkersPutAside() {
+    std::lock_guard lock(mu_);
+    const int64_t now = clock_.NowMs();
+    std::vector<std::string> names;
+    for (const auto& [id, w] : workers_)
+        if (w.put_aside_until_ms > now) names.push_back(w.name);
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+int64_t Scheduler::TimesWorkersPutAside() {
+    std::lock_guard lock(mu_);
+    return times_put_aside_;
+}
+
+HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                                    const std::string& lease_token) {
     std::lock_guard lock(mu_);
     int64_t wid = 0;
     FindWorker(worker_id, &wid);
@@ -219,6 +305,7 @@ HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_i
     if (task_id == 0) return reply;
     auto it = leases_.find(task_id);
     if (it != leases_.end() && it->second.lease_id == lease_id) {
+        CheckHolder(it->second, wid, lease_token, task_id);
         it->second.deadline_ms = clock_.NowMs() + options_.lease_ms;
         reply.lease_valid = true;
         return reply;
@@ -228,11 +315,24 @@ HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_i
     return reply;
 }
 
-const Scheduler::Lease& Scheduler::CurrentLease(int64_t task_id, int64_t lease_id, TaskRow* task) {
+void Scheduler::CheckHolder(const Lease& lease, int64_t wid, const std::string& token,
+                            int64_t task_id) const {
+    // Evaluated in full either way, so that the time taken tells nothing.
+    const bool token_ok = ConstantTimeEquals(lease.token, token);
+    if (lease.worker_id == wid && token_ok) return;
+    throw LeaseNotHeld(fmt::format(
+        "task {}: worker {} does not hold this lease (another worker's lease, or a wrong "
+        "lease token); refused",
+        task_id, FormatWorkerId(wid)));
+}
+
+const Scheduler::Lease& Scheduler::CurrentLease(int64_t wid, int64_t task_id, int64_t lease_id,
+                                                const std::string& token, TaskRow* task) {
     std::optional<TaskRow> row = store_.GetTask(task_id);
     if (!row) ThrowError(ErrorCode::kNotFound, fmt::format("unknown task {}", task_id));
     auto it = leases_.find(task_id);
     if (it != leases_.end() && it->second.lease_id == lease_id) {
+        CheckHolder(it->second, wid, token, task_id);
         *task = std::move(*row);
         return it->second;
     }
@@ -245,7 +345,7 @@ const Scheduler::Lease& Scheduler::CurrentLease(int64_t task_id, int64_t lease_i
     else if (row->state == TaskState::kDone)
         why = "the task is already done";
     else if (row->state == TaskState::kLeased)
-        why = fmt::format("the task is now under lease {}", row->lease_id);
+        why = "the task is now under another lease";
     else
         why = "the lease expired and the task was re-queued";
     ThrowError(ErrorCode::kFailedPrecondition,
@@ -274,10 +374,13 @@ std::vector<TaskInputRef> Scheduler::Inputs(const JobInfo& info, const TaskRow& 
     return inputs;
 }
 
-LeaseCheck Scheduler::CheckLease(int64_t task_id, int64_t lease_id) {
+LeaseCheck Scheduler::CheckLease(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                                 const std::string& lease_token) {
     std::lock_guard lock(mu_);
+    int64_t wid = 0;
+    FindWorker(worker_id, &wid);
     TaskRow task;
-    const Lease& lease = CurrentLease(task_id, lease_id, &task);
+    const Lease& lease = CurrentLease(wid, task_id, lease_id, lease_token, &task);
     const std::shared_ptr<const JobInfo> info = Info(lease.job_id);
     if (task.stage_index < 0 || task.stage_index >= static_cast<int>(info->plan->stages.size()))
         ThrowError(ErrorCode::kInternal, fmt::format("task {} has no stage", task_id));
@@ -285,14 +388,14 @@ LeaseCheck Scheduler::CheckLease(int64_t task_id, int64_t lease_id) {
 }
 
 void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                         const std::string& result_hash) {
+                         const std::string& lease_token, const std::string& result_hash) {
     Events events;
     {
         std::lock_guard lock(mu_);
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
         TaskRow task;
-        CurrentLease(task_id, lease_id, &task);
+        CurrentLease(wid, task_id, lease_id, lease_token, &task);
         const std::string job_id = FormatJobId(task.job_id);
         const std::shared_ptr<const JobInfo> info = Info(task.job_id);
         if (task.stage_index < 0 || task.stage_index >= static_cast<int>(info->plan->stages.size()))
@@ -307,6 +410,7 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         const int stage_done = store_.CountStageTaskDone(task.job_id, task.frame, task.stage_index);
         txn.Commit();
         leases_.erase(task_id);
+        worker.failures_in_a_row = 0;
         spdlog::info("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
                      lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
                      worker.name, stage_done, stage.num_tasks);
@@ -329,14 +433,14 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
 }
 
 void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                     const std::string& message) {
+                     const std::string& lease_token, const std::string& message) {
     Events events;
     {
         std::lock_guard lock(mu_);
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
         TaskRow task;
-        CurrentLease(task_id, lease_id, &task);
+        CurrentLease(wid, task_id, lease_id, lease_token, &task);
         const std::string job_id = FormatJobId(task.job_id);
         const std::string text = Truncate(message.empty() ? "(no message)" : message);
         const int failures = task.failures + 1;
@@ -365,6 +469,7 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
             events.push_back({Event::kWork, job_id, ""});
         }
         txn.Commit();
+        CountWorkerFailure(wid, worker, clock_.NowMs());
     }
     Emit(events);
 }

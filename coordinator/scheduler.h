@@ -14,12 +14,21 @@
 //   listener hears OnStageReady (merge it); when the last of the render stage does,
 //   OnFrameReady (assemble it).
 // - Only the current lease may complete or fail a task (fencing); anything else is
-//   FAILED_PRECONDITION "stale lease ...".
+//   FAILED_PRECONDITION "stale lease ...". The current lease is accepted only from the
+//   worker it was given to, with its secret token (128 random bits, compared in
+//   constant time; lease ids are sequential and so guessable): anything else throws
+//   LeaseNotHeld (PERMISSION_DENIED at the gRPC layer). No error reveals the current
+//   lease id or token.
+// - A task that failed on a worker is not leased to that worker again while another
+//   worker is live (seen within a lease period); a lone worker retries it itself. A
+//   worker that fails max_failures_in_a_row tasks in a row gets no leases for
+//   put_aside_ms (logged, and listed by WorkersPutAside); a completion resets its count.
 // - Heartbeats extend a lease; Sweep() re-queues leases past their deadline. Expiry is
 //   not a failure (a worker died or was cut off); FailTask is. A task that fails
 //   max_attempts times fails its job with the worker's message.
-// - Lease deadlines live in memory only (a heartbeat costs no disk write). After a
-//   restart every lease found in the database gets a fresh deadline of now + lease_ms:
+// - Lease deadlines live in memory only (a heartbeat costs no disk write); tokens are
+//   stored with the lease. After a restart every lease found in the database gets a
+//   fresh deadline of now + lease_ms:
 //   a worker that is still rendering may heartbeat and complete it; one that died
 //   loses it one lease period later.
 //
@@ -36,6 +45,7 @@
 #include <vector>
 
 #include "clock.h"
+#include "errors.h"
 #include "film/film.h"
 #include "plan/render_plan.h"
 #include "store.h"
@@ -46,6 +56,18 @@ namespace tessera {
 struct SchedulerOptions {
     int64_t lease_ms = 10000;
     int max_attempts = 3;
+    // A worker failing this many tasks in a row is put aside (0: never).
+    int max_failures_in_a_row = 5;
+    int64_t put_aside_ms = 60000;
+};
+
+// A lease used by another worker than its holder, or with a wrong token. errors.h has
+// no PERMISSION_DENIED: its code is FAILED_PRECONDITION for the logic layer, and the
+// gRPC adapter answers PERMISSION_DENIED.
+class LeaseNotHeld : public CoordinatorError {
+  public:
+    explicit LeaseNotHeld(const std::string& message)
+        : CoordinatorError(ErrorCode::kFailedPrecondition, message) {}
 };
 
 struct WorkerRegistration {
@@ -64,6 +86,7 @@ struct TaskInputRef {
 struct LeasedTask {
     int64_t task_id = 0;
     int64_t lease_id = 0;
+    std::string lease_token;  // the lease's secret: the worker sends it back
     std::string job_id;
     int frame = 0;
     std::string stage;
@@ -145,17 +168,26 @@ class Scheduler {
 
     // --- workers
     WorkerRegistration RegisterWorker(const std::string& name, int threads);
-    // NOT_FOUND for an unknown worker; nullopt when nothing is pending.
+    // NOT_FOUND for an unknown worker; nullopt when nothing is pending for it (or it
+    // is put aside).
     std::optional<LeasedTask> TryLease(const std::string& worker_id);
-    HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id);
-    // Verifies that `lease_id` is the task's current lease (see Complete) and returns
-    // what is needed to check the result before completing.
-    LeaseCheck CheckLease(int64_t task_id, int64_t lease_id);
-    // NOT_FOUND: unknown worker or task; FAILED_PRECONDITION: not the current lease.
+    // LeaseNotHeld for the current lease of another worker or with a wrong token.
+    HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                             const std::string& lease_token);
+    // Verifies that the caller holds the task's current lease (see Complete) and
+    // returns what is needed to check the result before completing.
+    LeaseCheck CheckLease(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                          const std::string& lease_token);
+    // NOT_FOUND: unknown worker or task; FAILED_PRECONDITION: not the current lease;
+    // LeaseNotHeld: the caller is not its worker or the token is wrong.
     void Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                  const std::string& result_hash);
+                  const std::string& lease_token, const std::string& result_hash);
     void Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-              const std::string& message);
+              const std::string& lease_token, const std::string& message);
+    // Names of the workers put aside now for failing too many tasks in a row.
+    std::vector<std::string> WorkersPutAside();
+    // How many times a worker was put aside since the coordinator started.
+    int64_t TimesWorkersPutAside();
     // Gives back a lease that never reached its worker: re-queued and not counted.
     void Release(int64_t task_id, int64_t lease_id);
     // Re-queues expired leases and notes silent workers; returns leases expired.
@@ -207,12 +239,15 @@ class Scheduler {
         int64_t worker_id = 0;
         int64_t job_id = 0;
         int64_t deadline_ms = 0;
+        std::string token;
     };
     struct Worker {
         std::string name;
         int threads = 0;
         int64_t last_seen_ms = 0;
         bool silent = false;
+        int failures_in_a_row = 0;
+        int64_t put_aside_until_ms = 0;  // 0: not put aside
     };
     // Immutable facts of a job, cached after first use.
     struct JobInfo {
@@ -238,7 +273,18 @@ class Scheduler {
     // end drop them from the cache, not from under a holder of the pointer).
     std::shared_ptr<const JobInfo> Info(int64_t job_id);
     JobRow LoadJob(int64_t job_id);
-    const Lease& CurrentLease(int64_t task_id, int64_t lease_id, TaskRow* task);
+    // The task's current lease, held by worker `wid` with `token`; throws otherwise.
+    const Lease& CurrentLease(int64_t wid, int64_t task_id, int64_t lease_id,
+                              const std::string& token, TaskRow* task);
+    // Throws LeaseNotHeld unless worker `wid` with `token` holds `lease`.
+    void CheckHolder(const Lease& lease, int64_t wid, const std::string& token,
+                     int64_t task_id) const;
+    // Whether a worker other than `wid` may take work now (seen within a lease period).
+    bool OtherWorkerLive(int64_t wid, int64_t now) const;
+    // The pending task to lease to worker `wid` next, if any.
+    std::optional<TaskRow> NextTaskFor(int64_t wid, int64_t now);
+    // Counts a failure of the worker; puts it aside after too many in a row.
+    void CountWorkerFailure(int64_t wid, Worker& worker, int64_t now);
     // The merged artifacts a pending task reads (INTERNAL if one is missing).
     std::vector<TaskInputRef> Inputs(const JobInfo& info, const TaskRow& task);
     std::string WorkerName(int64_t worker_id) const;
@@ -253,6 +299,7 @@ class Scheduler {
     Store store_;
     SchedulerListener* listener_ = nullptr;
     int64_t last_lease_id_ = 0;
+    int64_t times_put_aside_ = 0;
     std::unordered_map<int64_t, Lease> leases_;  // by task id: the outstanding leases
     std::unordered_map<int64_t, Worker> workers_;
     std::unordered_map<int64_t, std::shared_ptr<const JobInfo>> jobs_;

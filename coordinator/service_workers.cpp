@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <functional>
 
 #include "grpc_status.h"
 #include "services.h"
@@ -14,6 +15,7 @@ namespace {
 void ToProto(const LeasedTask& t, v1::Task* out) {
     out->set_task_id(t.task_id);
     out->set_lease_id(t.lease_id);
+    out->set_lease_token(t.lease_token);
     out->set_job_id(t.job_id);
     out->set_frame(t.frame);
     out->set_stage(t.stage);
@@ -26,6 +28,21 @@ void ToProto(const LeasedTask& t, v1::Task* out) {
         input->set_hash(in.hash);
         input->set_size(in.size);
     }
+}
+
+// Guarded, except that a lease the caller does not hold is PERMISSION_DENIED (the
+// logic layer's error codes have none).
+grpc::Status LeaseGuarded(const std::function<void()>& body) {
+    std::string denied;
+    grpc::Status status = Guarded([&] {
+        try {
+            body();
+        } catch (const LeaseNotHeld& e) {
+            denied = e.what();
+        }
+    });
+    if (!denied.empty()) return grpc::Status(grpc::StatusCode::PERMISSION_DENIED, denied);
+    return status;
 }
 
 // A long poll: parked in the coordinator's dispatcher until a task is leased to it,
@@ -82,8 +99,9 @@ class WorkersService final : public v1::Workers::CallbackService {
                                         const v1::HeartbeatRequest* req,
                                         v1::HeartbeatResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-        reactor->Finish(Guarded([&] {
-            HeartbeatReply r = c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id());
+        reactor->Finish(LeaseGuarded([&] {
+            HeartbeatReply r =
+                c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token());
             resp->set_lease_valid(r.lease_valid);
             resp->set_cancelled(r.cancelled);
         }));
@@ -94,9 +112,9 @@ class WorkersService final : public v1::Workers::CallbackService {
                                            const v1::CompleteTaskRequest* req,
                                            v1::CompleteTaskResponse*) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-        reactor->Finish(Guarded([&] {
-            c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->result_hash(),
-                            req->result());
+        reactor->Finish(LeaseGuarded([&] {
+            c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
+                            req->result_hash(), req->result());
         }));
         return reactor;
     }
@@ -105,8 +123,9 @@ class WorkersService final : public v1::Workers::CallbackService {
                                        const v1::FailTaskRequest* req,
                                        v1::FailTaskResponse*) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-        reactor->Finish(Guarded([&] {
-            c_.FailTask(req->worker_id(), req->task_id(), req->lease_id(), req->message());
+        reactor->Finish(LeaseGuarded([&] {
+            c_.FailTask(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
+                        req->message());
         }));
         return reactor;
     }

@@ -67,7 +67,9 @@ CREATE TABLE IF NOT EXISTS tasks(
   lease_id INTEGER NOT NULL DEFAULT 0,
   worker_id INTEGER NOT NULL DEFAULT 0,
   result_hash TEXT NOT NULL DEFAULT '',
-  completions INTEGER NOT NULL DEFAULT 0);
+  completions INTEGER NOT NULL DEFAULT 0,
+  lease_token TEXT NOT NULL DEFAULT '',
+  failed_worker_id INTEGER NOT NULL DEFAULT 0);
 CREATE INDEX IF NOT EXISTS tasks_pending ON tasks(priority DESC, id) WHERE state = 0;
 CREATE INDEX IF NOT EXISTS tasks_leased ON tasks(id) WHERE state = 1;
 CREATE TABLE IF NOT EXISTS failures(
@@ -94,7 +96,7 @@ constexpr const char* kJobColumns =
     "width, height, spp, max_depth, tile_size, seed, integrator, sampler, scene_name, settings";
 constexpr const char* kTaskColumns =
     "id, job_id, frame, stage, task_index, state, attempts, failures, lease_id, worker_id, "
-    "result_hash, completions, stage_index";
+    "result_hash, completions, stage_index, lease_token, failed_worker_id";
 constexpr const char* kFrameColumns =
     "frame, state, tasks_total, tasks_done, first_task_id, started_ms, exr_path";
 constexpr const char* kStageColumns =
@@ -105,9 +107,17 @@ std::string Sql(const char* head, const char* columns, const char* tail) {
     return std::string(head) + columns + tail;
 }
 
+// Schema 3 added the tasks' lease tokens and the worker each last failed on.
+constexpr int kMigratableVersion = 2;
+constexpr const char* kMigrateFrom2 = R"sql(
+ALTER TABLE tasks ADD COLUMN lease_token TEXT NOT NULL DEFAULT '';
+ALTER TABLE tasks ADD COLUMN failed_worker_id INTEGER NOT NULL DEFAULT 0;
+)sql";
+
 // A database of another layout is refused rather than misread: its jobs could not be
-// planned (before schema 2, a job's settings were not stored in full).
-void CheckSchemaVersion(SqliteDb& db, const std::string& path) {
+// planned (before schema 2, a job's settings were not stored in full). Returns the
+// version found (0 for a new database).
+int64_t CheckSchemaVersion(SqliteDb& db, const std::string& path) {
     SqliteStatement version = db.Prepare("PRAGMA user_version");
     version.Step();
     const int64_t v = version.Int(0);
@@ -117,7 +127,7 @@ void CheckSchemaVersion(SqliteDb& db, const std::string& path) {
     tables.Step();
     const bool has_jobs = tables.Int(0) > 0;
     tables.Reset();
-    if (v == Store::kSchemaVersion || (v == 0 && !has_jobs)) return;
+    if (v == Store::kSchemaVersion || v == kMigratableVersion || (v == 0 && !has_jobs)) return v;
     throw std::runtime_error(
         path + " holds coordinator state of schema version " + std::to_string(v) +
         ", written by another version of the coordinator; this one reads version " +
@@ -139,7 +149,12 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     // Checkpoint() normally keeps the WAL short; this is only the fallback.
     db_.Exec("PRAGMA wal_autocheckpoint=20000");
     db_.Exec("PRAGMA foreign_keys=OFF");
-    CheckSchemaVersion(db_, path);
+    if (CheckSchemaVersion(db_, path) == kMigratableVersion) {
+        // Leases outstanding across the upgrade keep an empty token (see Scheduler).
+        SqliteTransaction txn(db_);
+        db_.Exec(kMigrateFrom2);
+        txn.Commit();
+    }
     db_.Exec(kSchema);
     db_.Exec("PRAGMA user_version = " + std::to_string(kSchemaVersion));
 
@@ -222,15 +237,20 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     next_pending_ = db_.Prepare(Sql("SELECT ", kTaskColumns,
                                     " FROM tasks WHERE state = 0 ORDER BY priority DESC, id "
                                     "LIMIT 1"));
+    // Walks the pending index past the few tasks that last failed on the worker.
+    next_pending_avoiding_ = db_.Prepare(Sql("SELECT ", kTaskColumns,
+                                             " FROM tasks WHERE state = 0 AND failed_worker_id "
+                                             "<> ?1 ORDER BY priority DESC, id LIMIT 1"));
     get_task_ = db_.Prepare(Sql("SELECT ", kTaskColumns, " FROM tasks WHERE id = ?1"));
     lease_task_ = db_.Prepare(
-        "UPDATE tasks SET state = 1, lease_id = ?2, worker_id = ?3, attempts = attempts + 1 "
-        "WHERE id = ?1 AND state = 0");
+        "UPDATE tasks SET state = 1, lease_id = ?2, worker_id = ?3, lease_token = ?4, "
+        "attempts = attempts + 1 WHERE id = ?1 AND state = 0");
     complete_task_ = db_.Prepare(
         "UPDATE tasks SET state = 2, result_hash = ?3, completions = completions + 1 "
         "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
     requeue_task_ = db_.Prepare(
-        "UPDATE tasks SET state = 0, failures = failures + ?3 "
+        "UPDATE tasks SET state = 0, failures = failures + ?3, "
+        "failed_worker_id = CASE WHEN ?3 > 0 THEN worker_id ELSE failed_worker_id END "
         "WHERE id = ?1 AND state = 1 AND lease_id = ?2");
     release_task_ = db_.Prepare(
         "UPDATE tasks SET state = 0, attempts = attempts - 1 "
@@ -522,6 +542,8 @@ TaskRow Store::ReadTask(const SqliteStatement& s) const {
     t.result_hash = s.Text(10);
     t.completions = int(s.Int(11));
     t.stage_index = int(s.Int(12));
+    t.lease_token = s.Text(13);
+    t.failed_worker_id = s.Int(14);
     return t;
 }
 
@@ -533,6 +555,14 @@ std::optional<TaskRow> Store::NextPendingTask() {
     return t;
 }
 
+std::optional<TaskRow> Store::NextPendingTaskAvoiding(int64_t worker_id) {
+    next_pending_avoiding_.Bind(worker_id);
+    if (!next_pending_avoiding_.Step()) return std::nullopt;
+    TaskRow t = ReadTask(next_pending_avoiding_);
+    next_pending_avoiding_.Reset();
+    return t;
+}
+
 std::optional<TaskRow> Store::GetTask(int64_t task_id) {
     get_task_.Bind(task_id);
     if (!get_task_.Step()) return std::nullopt;
@@ -541,8 +571,9 @@ std::optional<TaskRow> Store::GetTask(int64_t task_id) {
     return t;
 }
 
-void Store::LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id) {
-    lease_task_.Bind(task_id, lease_id, worker_id).Run();
+void Store::LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id,
+                      const std::string& lease_token) {
+    lease_task_.Bind(task_id, lease_id, worker_id, lease_token).Run();
 }
 
 bool Store::CompleteTask(int64_t task_id, int64_t lease_id, const std::string& result_hash) {

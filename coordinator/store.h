@@ -12,7 +12,9 @@
 // task index) order. The pending queue is a partial index over (priority DESC, id), so
 // picking the next task is one index lookup however many tasks are queued. Tasks of a
 // stage whose inputs are not merged yet wait outside it (state kWaiting) until the
-// transaction that records the merge releases them.
+// transaction that records the merge releases them. A task remembers its lease's
+// secret token (so that leases recovered after a restart keep it) and the worker it
+// last failed on (so that the scheduler can hand it to another one).
 
 #include <cstdint>
 #include <memory>
@@ -113,6 +115,8 @@ struct TaskRow {
     int64_t worker_id = 0;
     std::string result_hash;
     int completions = 0;
+    std::string lease_token;       // the current lease's secret
+    int64_t failed_worker_id = 0;  // the worker of its last FailTask; 0 if none
 };
 
 struct FailureRow {
@@ -130,12 +134,13 @@ struct WorkerRow {
 class Store {
   public:
     // The layout this code reads and writes (PRAGMA user_version).
-    static constexpr int kSchemaVersion = 2;
+    static constexpr int kSchemaVersion = 3;
 
     // Opens or creates the database, in WAL mode with synchronous=NORMAL: a commit is
     // in the WAL before the call returns, so it survives the process being killed.
     // Throws std::runtime_error for a database of another schema version (state from
-    // an older coordinator: start with a fresh state directory).
+    // an older coordinator: start with a fresh state directory). Version 2 is upgraded
+    // in place.
     explicit Store(const std::string& path);
 
     SqliteDb& Db() { return db_; }
@@ -188,10 +193,14 @@ class Store {
     std::vector<std::tuple<int64_t, int, int>> StagesAwaitingMerge();
 
     std::optional<TaskRow> NextPendingTask();
+    // The next pending task that did not last fail on `worker_id`.
+    std::optional<TaskRow> NextPendingTaskAvoiding(int64_t worker_id);
     std::optional<TaskRow> GetTask(int64_t task_id);
-    void LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id);
+    void LeaseTask(int64_t task_id, int64_t lease_id, int64_t worker_id,
+                   const std::string& lease_token);
     // Each returns true if the task held lease `lease_id` (and so changed).
     bool CompleteTask(int64_t task_id, int64_t lease_id, const std::string& result_hash);
+    // A counted failure also records the lease's worker as the one it last failed on.
     bool RequeueTask(int64_t task_id, int64_t lease_id, bool count_failure);
     // Undoes a lease that never reached a worker: the task is pending again and
     // neither its attempt nor the job's lease count keep it.
@@ -234,9 +243,9 @@ class Store {
         fail_open_frames_, frames_not_done_, frames_awaiting_;
     SqliteStatement get_stages_, get_frame_stages_, get_stage_, stage_task_done_, stage_merged_,
         release_tasks_, stages_awaiting_;
-    SqliteStatement next_pending_, get_task_, lease_task_, complete_task_, requeue_task_,
-        release_task_, requeue_done_, uncount_stage_done_, uncount_frame_done_, uncount_job_done_,
-        drop_tasks_, leased_tasks_, stage_results_;
+    SqliteStatement next_pending_, next_pending_avoiding_, get_task_, lease_task_, complete_task_,
+        requeue_task_, release_task_, requeue_done_, uncount_stage_done_, uncount_frame_done_,
+        uncount_job_done_, drop_tasks_, leased_tasks_, stage_results_;
     SqliteStatement insert_failure_, recent_failures_, insert_worker_, workers_;
 };
 

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <limits>
 #include <thread>
 
 #include "blob_client.h"
@@ -196,7 +197,7 @@ class CoordinatorTest : public ::testing::Test {
     void RenderAll(const std::string& worker) {
         while (std::optional<LeasedTask> t = LeaseNow(worker)) {
             std::string hash = PutBlob(Render(*t));
-            C().CompleteTask(worker, t->task_id, t->lease_id, hash);
+            C().CompleteTask(worker, t->task_id, t->lease_id, t->lease_token, hash);
         }
     }
     v1::JobStatus WaitFinished(const std::string& job_id) {
@@ -332,19 +333,24 @@ TEST_F(CoordinatorTest, CompleteChecksTheResultBlob) {
     LeasedTask b = *LeaseNow(w);
     std::string message;
     EXPECT_EQ(
-        CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, Sha256Hex("absent")); }, &message),
+        CodeOf(
+            [&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, Sha256Hex("absent")); },
+            &message),
         ErrorCode::kNotFound);
     EXPECT_NE(message.find("not uploaded"), std::string::npos) << message;
     const std::string junk = PutBlob("not a tile result at all");
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, junk); }, &message),
-              ErrorCode::kInvalidArgument);
+    EXPECT_EQ(
+        CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, junk); }, &message),
+        ErrorCode::kInvalidArgument);
     const std::string other_tile = PutBlob(Render(b));
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, other_tile); }, &message),
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, other_tile); },
+                     &message),
               ErrorCode::kInvalidArgument);
     EXPECT_NE(message.find("is not a result of task"), std::string::npos) << message;
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id + 100, junk); }),
-              ErrorCode::kFailedPrecondition);
-    C().CompleteTask(w, a.task_id, a.lease_id, PutBlob(Render(a)));
+    EXPECT_EQ(
+        CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id + 100, a.lease_token, junk); }),
+        ErrorCode::kFailedPrecondition);
+    C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, PutBlob(Render(a)));
     EXPECT_EQ(C().GetJob(job).tasks_done(), 1);
 }
 
@@ -357,7 +363,8 @@ TEST_F(CoordinatorTest, InlineResultsAreAcceptedAndAssembled) {
     while (std::optional<LeasedTask> t = LeaseNow(w)) {
         const std::string result = Render(*t);
         // The hash is optional with an inline result; when given, it must match.
-        C().CompleteTask(w, t->task_id, t->lease_id, with_hash ? Sha256Hex(result) : "", result);
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token,
+                         with_hash ? Sha256Hex(result) : "", result);
         EXPECT_TRUE(C().Blobs().Has(Sha256Hex(result)));
         with_hash = !with_hash;
     }
@@ -376,7 +383,9 @@ TEST_F(CoordinatorTest, InlineResultsAreChecked) {
     const std::string result = Render(a);
     std::string message;
     auto complete = [&](const std::string& hash, const std::string& bytes) {
-        return CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, hash, bytes); }, &message);
+        return CodeOf(
+            [&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, hash, bytes); },
+            &message);
     };
     // A result that does not match its hash.
     EXPECT_EQ(complete(Sha256Hex("something else"), result), ErrorCode::kInvalidArgument);
@@ -394,8 +403,37 @@ TEST_F(CoordinatorTest, InlineResultsAreChecked) {
     EXPECT_FALSE(C().Blobs().Has(Sha256Hex(result)));
     EXPECT_FALSE(C().Blobs().Has(Sha256Hex(Render(b))));
     EXPECT_EQ(C().GetJob(job).tasks_done(), 0);
-    C().CompleteTask(w, a.task_id, a.lease_id, Sha256Hex(result), result);
+    C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, Sha256Hex(result), result);
     EXPECT_EQ(C().GetJob(job).tasks_done(), 1);
+}
+
+// A NaN in a tile would poison the frame's sums: refused, and counted as a failure of
+// the task on that worker (it runs again, elsewhere if it can).
+TEST_F(CoordinatorTest, AResultWithANaNPixelIsRefusedAndCountsAsAFailure) {
+    std::string job = C().SubmitJob(SceneSpec());
+    std::string w = C().Register("w1", 1).worker_id;
+    LeasedTask a = *LeaseNow(w);
+    TileResult tile = DecodeTileResult(Render(a));
+    ASSERT_FALSE(tile.data.empty());
+    tile.data[tile.data.size() / 2] = std::numeric_limits<float>::quiet_NaN();
+    const std::string bad = EncodeTileResult(tile);
+    std::string message;
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, "", bad); },
+                     &message),
+              ErrorCode::kInvalidArgument);
+    EXPECT_NE(message.find("non-finite value"), std::string::npos) << message;
+    EXPECT_FALSE(C().Blobs().Has(Sha256Hex(bad)));
+    v1::JobStatus st = C().GetJob(job);
+    EXPECT_EQ(st.tasks_done(), 0);
+    ASSERT_EQ(st.failures_size(), 1);
+    EXPECT_NE(st.failures(0).message().find("non-finite"), std::string::npos);
+    // The lease is over; the task is pending again (the lone worker retries it).
+    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, a.task_id, a.lease_id, a.lease_token, "", bad); }),
+              ErrorCode::kFailedPrecondition);
+    std::optional<LeasedTask> again = LeaseNow(w);
+    while (again && again->task_id != a.task_id) again = LeaseNow(w);
+    ASSERT_TRUE(again.has_value());
+    EXPECT_EQ(again->attempt, 2);
 }
 
 TEST_F(CoordinatorTest, InlineResultOfAStaleLeaseIsRefusedAndNotStored) {
@@ -403,15 +441,20 @@ TEST_F(CoordinatorTest, InlineResultOfAStaleLeaseIsRefusedAndNotStored) {
     std::string w = C().Register("w1", 1).worker_id;
     LeasedTask t = *LeaseNow(w);
     const std::string result = Render(t);
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id + 100, "", result); }),
+    EXPECT_EQ(CodeOf([&] {
+                  C().CompleteTask(w, t.task_id, t.lease_id + 100, t.lease_token, "", result);
+              }),
               ErrorCode::kFailedPrecondition);
     // Fencing comes before any check of the result.
-    EXPECT_EQ(
-        CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id + 100, Sha256Hex("x"), result); }),
-        ErrorCode::kFailedPrecondition);
-    EXPECT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, "", result); }),
+    EXPECT_EQ(CodeOf([&] {
+                  C().CompleteTask(w, t.task_id, t.lease_id + 100, t.lease_token, Sha256Hex("x"),
+                                   result);
+              }),
               ErrorCode::kFailedPrecondition);
+    EXPECT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
+    EXPECT_EQ(
+        CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, t.lease_token, "", result); }),
+        ErrorCode::kFailedPrecondition);
     EXPECT_FALSE(C().Blobs().Has(Sha256Hex(result)));
     EXPECT_EQ(C().GetJob(job).tasks_done(), 0);
 }
@@ -481,7 +524,8 @@ TEST_F(CoordinatorTest, ALostTileResultIsRenderedAgain) {
     ASSERT_TRUE(again.has_value());
     EXPECT_EQ(again->task_index, 2);
     EXPECT_EQ(again->attempt, 2);
-    C().CompleteTask(w, again->task_id, again->lease_id, PutBlob(Render(*again)));
+    C().CompleteTask(w, again->task_id, again->lease_id, again->lease_token,
+                     PutBlob(Render(*again)));
     v1::JobStatus st = WaitFinished(job);
     ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
     EXPECT_EQ(st.leases_granted(), kTasksPerFrame + 1);
@@ -497,7 +541,7 @@ TEST_F(CoordinatorTest, ADamagedTileResultIsRenderedAgain) {
     std::string w = C().Register("w1", 1).worker_id;
     while (std::optional<LeasedTask> t = LeaseNow(w)) {
         const std::string result = Render(*t);
-        C().CompleteTask(w, t->task_id, t->lease_id, "", result);
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, "", result);
     }
     const std::string damaged = C().GetScheduler().GetAssemblyInput(job, 0).results[4].second;
     {
@@ -516,7 +560,7 @@ TEST_F(CoordinatorTest, ADamagedTileResultIsRenderedAgain) {
     EXPECT_EQ(again->task_index, 4);
     EXPECT_EQ(again->attempt, 2);
     EXPECT_FALSE(C().Blobs().Has(damaged));  // removed, so that it can be stored again
-    C().CompleteTask(w, again->task_id, again->lease_id, "", Render(*again));
+    C().CompleteTask(w, again->task_id, again->lease_id, again->lease_token, "", Render(*again));
     v1::JobStatus st = WaitFinished(job);
     ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
     EXPECT_EQ(st.leases_granted(), kTasksPerFrame + 1);
@@ -571,11 +615,13 @@ TEST_F(CoordinatorTest, CancelStopsWorkAndWritesNothing) {
     std::string w = C().Register("w1", 1).worker_id;
     LeasedTask t = *LeaseNow(w);
     EXPECT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
-    HeartbeatReply r = C().Heartbeat(w, t.task_id, t.lease_id);
+    HeartbeatReply r = C().Heartbeat(w, t.task_id, t.lease_id, t.lease_token);
     EXPECT_FALSE(r.lease_valid);
     EXPECT_TRUE(r.cancelled);
     EXPECT_FALSE(LeaseNow(w).has_value());
-    EXPECT_EQ(CodeOf([&] { C().CompleteTask(w, t.task_id, t.lease_id, PutBlob(Render(t))); }),
+    EXPECT_EQ(CodeOf([&] {
+                  C().CompleteTask(w, t.task_id, t.lease_id, t.lease_token, PutBlob(Render(t)));
+              }),
               ErrorCode::kFailedPrecondition);
     EXPECT_FALSE(fs::exists(dir_ / "out" / job));
 }
@@ -610,9 +656,9 @@ TEST_F(CoordinatorTest, StagedPlanEqualsTheLocalRunnerWhateverTheCompletionOrder
         for (auto it = batch.rbegin(); it != batch.rend(); ++it) {
             const std::string result = Render(*it);
             if (++completed % 2)
-                C().CompleteTask(w, it->task_id, it->lease_id, "", result);
+                C().CompleteTask(w, it->task_id, it->lease_id, it->lease_token, "", result);
             else
-                C().CompleteTask(w, it->task_id, it->lease_id, PutBlob(result));
+                C().CompleteTask(w, it->task_id, it->lease_id, it->lease_token, PutBlob(result));
         }
     }
     EXPECT_EQ(stages,
@@ -644,7 +690,7 @@ TEST_F(CoordinatorTest, RestartMergesAStageWhoseTasksWereAllDone) {
     EXPECT_EQ(next->stage, "irradiance-1");
     ASSERT_EQ(next->inputs.size(), 1u);
     EXPECT_EQ(next->inputs[0].stage, "photons");
-    C().CompleteTask(w, next->task_id, next->lease_id, PutBlob(Render(*next)));
+    C().CompleteTask(w, next->task_id, next->lease_id, next->lease_token, PutBlob(Render(*next)));
     while (true) {
         RenderAll(w);
         C().FrameWork().WaitIdle();
@@ -666,7 +712,7 @@ TEST_F(CoordinatorTest, ALostPhotonBatchIsComputedAgainBeforeTheMerge) {
     std::string job = C().SubmitJob(spec);
     std::string w = C().Register("w1", 1).worker_id;
     while (std::optional<LeasedTask> t = LeaseNow(w))
-        C().CompleteTask(w, t->task_id, t->lease_id, "", Render(*t));
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, "", Render(*t));
     const StageMergeInput in = C().GetScheduler().GetMergeInput(job, 0, 0);
     ASSERT_TRUE(in.ready);
     fs::remove(C().Blobs().PathOf(in.results[1].second));
@@ -679,7 +725,7 @@ TEST_F(CoordinatorTest, ALostPhotonBatchIsComputedAgainBeforeTheMerge) {
     EXPECT_EQ(again->stage, "photons");
     EXPECT_EQ(again->task_index, 1);
     EXPECT_EQ(again->attempt, 2);
-    C().CompleteTask(w, again->task_id, again->lease_id, "", Render(*again));
+    C().CompleteTask(w, again->task_id, again->lease_id, again->lease_token, "", Render(*again));
     C().FrameWork().WaitIdle();
     const StageMergeInput merged = C().GetScheduler().GetMergeInput(job, 0, 0);
     EXPECT_TRUE(merged.merged);
@@ -787,6 +833,7 @@ TEST_F(GrpcAdapterTest, AJobEndToEnd) {
             hb.set_worker_id(reg.worker_id());
             hb.set_task_id(task.task_id());
             hb.set_lease_id(task.lease_id());
+            hb.set_lease_token(task.lease_token());
             v1::HeartbeatResponse hr;
             ASSERT_TRUE(workers_stub_->Heartbeat(&hctx, hb, &hr).ok());
             EXPECT_TRUE(hr.lease_valid());
@@ -805,6 +852,12 @@ TEST_F(GrpcAdapterTest, AJobEndToEnd) {
         else
             done.set_result_hash(UploadBlob(*blob_stub_, Render(lt)));
         v1::CompleteTaskResponse ignored;
+        if (rendered == 0) {  // a forged completion: the right lease id, no token
+            grpc::ClientContext fctx;
+            EXPECT_EQ(workers_stub_->CompleteTask(&fctx, done, &ignored).error_code(),
+                      grpc::StatusCode::PERMISSION_DENIED);
+        }
+        done.set_lease_token(task.lease_token());
         ASSERT_TRUE(workers_stub_->CompleteTask(&cctx, done, &ignored).ok());
         ++rendered;
     }

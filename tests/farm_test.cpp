@@ -667,6 +667,7 @@ TEST_F(FarmTest, StaleResultIsRejected) {
         req.set_worker_id(worker_id);
         req.set_task_id(task.task_id());
         req.set_lease_id(task.lease_id());
+        req.set_lease_token(task.lease_token());
         req.set_result_hash(hash);
         req.set_result(inline_result);
         v1::CompleteTaskResponse resp;

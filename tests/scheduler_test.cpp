@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <functional>
 #include <set>
 #include <tuple>
 
@@ -168,13 +169,13 @@ TEST_F(SchedulerTest, LeaseCarriesTaskSpecAndDeadline) {
 TEST_F(SchedulerTest, UnknownAndMalformedIdsAreRejected) {
     EXPECT_ERROR(S().TryLease("w-99"), ErrorCode::kNotFound, "register again");
     EXPECT_ERROR(S().TryLease("nonsense"), ErrorCode::kInvalidArgument, "malformed worker id");
-    EXPECT_ERROR(S().Heartbeat("w-99", 0, 0), ErrorCode::kNotFound, "unknown worker");
+    EXPECT_ERROR(S().Heartbeat("w-99", 0, 0, ""), ErrorCode::kNotFound, "unknown worker");
     EXPECT_ERROR(S().GetJob("job-42"), ErrorCode::kNotFound, "no job job-42");
     EXPECT_ERROR(S().GetJob("42"), ErrorCode::kInvalidArgument, "malformed job id");
     EXPECT_ERROR(S().GetJob(""), ErrorCode::kInvalidArgument, "empty");
     EXPECT_ERROR(S().Cancel("job-x"), ErrorCode::kInvalidArgument, "malformed");
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
-    EXPECT_ERROR(S().Complete(w, 12345, 1, std::string(64, 'a')), ErrorCode::kNotFound,
+    EXPECT_ERROR(S().Complete(w, 12345, 1, "", std::string(64, 'a')), ErrorCode::kNotFound,
                  "unknown task 12345");
 }
 
@@ -197,14 +198,14 @@ TEST_F(SchedulerTest, HeartbeatExtendsLeaseAndSweepExpiresIt) {
     std::string job = S().AddJob(MakeJob("shot", 0));
     LeasedTask t = Lease(w);
     clock_.now += 900;
-    EXPECT_TRUE(S().Heartbeat(w, t.task_id, t.lease_id).lease_valid);
+    EXPECT_TRUE(S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token).lease_valid);
     clock_.now += 900;  // 1800 after the lease; the heartbeat moved the deadline to 1900
     EXPECT_EQ(S().Sweep(), 0);
     clock_.now += 100;
     int work_before = listener_.work;
     EXPECT_EQ(S().Sweep(), 1);
     EXPECT_GT(listener_.work, work_before);
-    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id);
+    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token);
     EXPECT_FALSE(r.lease_valid);
     EXPECT_FALSE(r.cancelled);
     // The task is pending again, first in line, on its second attempt.
@@ -225,16 +226,20 @@ TEST_F(SchedulerTest, StaleLeaseIsFencedAfterExpiryAndReLease) {
     ASSERT_EQ(new_lease.task_id, old_lease.task_id);
     EXPECT_GT(new_lease.lease_id, old_lease.lease_id);
     const std::string hash(64, 'a');
-    EXPECT_ERROR(S().Complete(slow, old_lease.task_id, old_lease.lease_id, hash),
+    EXPECT_ERROR(
+        S().Complete(slow, old_lease.task_id, old_lease.lease_id, old_lease.lease_token, hash),
+        ErrorCode::kFailedPrecondition, "stale lease");
+    EXPECT_ERROR(
+        S().Fail(slow, old_lease.task_id, old_lease.lease_id, old_lease.lease_token, "late"),
+        ErrorCode::kFailedPrecondition, "now under another lease");
+    EXPECT_ERROR(S().CheckLease(slow, old_lease.task_id, old_lease.lease_id, old_lease.lease_token),
                  ErrorCode::kFailedPrecondition, "stale lease");
-    EXPECT_ERROR(S().Fail(slow, old_lease.task_id, old_lease.lease_id, "late"),
-                 ErrorCode::kFailedPrecondition, "now under lease");
-    EXPECT_ERROR(S().CheckLease(old_lease.task_id, old_lease.lease_id),
-                 ErrorCode::kFailedPrecondition, "stale lease");
-    EXPECT_NO_THROW(S().CheckLease(new_lease.task_id, new_lease.lease_id));
-    S().Complete(fast, new_lease.task_id, new_lease.lease_id, hash);
-    EXPECT_ERROR(S().Complete(fast, new_lease.task_id, new_lease.lease_id, hash),
-                 ErrorCode::kFailedPrecondition, "already done");
+    EXPECT_NO_THROW(
+        S().CheckLease(fast, new_lease.task_id, new_lease.lease_id, new_lease.lease_token));
+    S().Complete(fast, new_lease.task_id, new_lease.lease_id, new_lease.lease_token, hash);
+    EXPECT_ERROR(
+        S().Complete(fast, new_lease.task_id, new_lease.lease_id, new_lease.lease_token, hash),
+        ErrorCode::kFailedPrecondition, "already done");
     v1::JobStatus st = S().GetJob(job);
     EXPECT_EQ(st.tasks_done(), 1);
     EXPECT_TRUE(st.failures().empty());  // expiry is not a failure
@@ -248,7 +253,8 @@ TEST_F(SchedulerTest, FrameReadyWhenAllTasksDoneAndJobDoneWhenAllFramesWritten) 
     ASSERT_EQ(tasks.size(), 4u);
     // Out of order: frame 2 completes first.
     for (int i : {3, 2, 1, 0})
-        S().Complete(w, tasks[i].task_id, tasks[i].lease_id, std::string(64, 'a' + i));
+        S().Complete(w, tasks[i].task_id, tasks[i].lease_id, tasks[i].lease_token,
+                     std::string(64, 'a' + i));
     ASSERT_EQ(listener_.ready.size(), 2u);
     EXPECT_EQ(listener_.ready[0], std::make_pair(job, 2));
     EXPECT_EQ(listener_.ready[1], std::make_pair(job, 1));
@@ -280,7 +286,7 @@ TEST_F(SchedulerTest, TaskFailingMaxAttemptsFailsItsJobWithTheWorkersMessage) {
         LeasedTask t = Lease(workers[attempt - 1]);
         EXPECT_EQ(t.task_index, 1);
         EXPECT_EQ(t.attempt, attempt);
-        S().Fail(workers[attempt - 1], t.task_id, t.lease_id,
+        S().Fail(workers[attempt - 1], t.task_id, t.lease_id, t.lease_token,
                  "out of memory #" + std::to_string(attempt));
         if (attempt < 3) {
             EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
@@ -299,8 +305,10 @@ TEST_F(SchedulerTest, TaskFailingMaxAttemptsFailsItsJobWithTheWorkersMessage) {
     EXPECT_EQ(st.frames(0).state(), v1::FRAME_STATE_FAILED);
     // Nothing of the failed job is handed out any more; its last lease is revoked.
     EXPECT_FALSE(S().TryLease(workers[0]).has_value());
-    EXPECT_FALSE(S().Heartbeat(workers[0], other.task_id, other.lease_id).lease_valid);
-    EXPECT_ERROR(S().Complete(workers[0], other.task_id, other.lease_id, std::string(64, 'a')),
+    EXPECT_FALSE(
+        S().Heartbeat(workers[0], other.task_id, other.lease_id, other.lease_token).lease_valid);
+    EXPECT_ERROR(S().Complete(workers[0], other.task_id, other.lease_id, other.lease_token,
+                              std::string(64, 'a')),
                  ErrorCode::kFailedPrecondition, "job failed");
 }
 
@@ -313,10 +321,10 @@ TEST_F(SchedulerTest, CancellationRevokesLeasesAndStopsLeasing) {
     v1::JobStatus st = S().Cancel(doomed);
     EXPECT_EQ(st.state(), v1::JOB_STATE_CANCELLED);
     EXPECT_GT(st.finished_unix_ms(), 0);
-    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id);
+    HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token);
     EXPECT_FALSE(r.lease_valid);
     EXPECT_TRUE(r.cancelled);
-    EXPECT_ERROR(S().Complete(w, t.task_id, t.lease_id, std::string(64, 'a')),
+    EXPECT_ERROR(S().Complete(w, t.task_id, t.lease_id, t.lease_token, std::string(64, 'a')),
                  ErrorCode::kFailedPrecondition, "cancelled");
     // Only the other job's tasks remain.
     std::set<std::string> jobs;
@@ -343,7 +351,7 @@ TEST_F(SchedulerTest, LeasesGrantedEqualsTasksWithoutReLeases) {
     std::string job = S().AddJob(MakeJob("shot", 0, 3, 100, 70));  // 4x3 tiles x 3 frames
     int n = 0;
     while (std::optional<LeasedTask> t = S().TryLease(w)) {
-        S().Complete(w, t->task_id, t->lease_id, std::string(64, 'c'));
+        S().Complete(w, t->task_id, t->lease_id, t->lease_token, std::string(64, 'c'));
         ++n;
     }
     v1::JobStatus st = S().GetJob(job);
@@ -358,9 +366,11 @@ TEST_F(SchedulerTest, RestartKeepsStateLeasesAndFinishedWork) {
     std::string job = S().AddJob(MakeJob("shot", 0, 2));
     std::vector<LeasedTask> tasks;
     for (int i = 0; i < 3; ++i) tasks.push_back(Lease(w));
-    S().Complete(w, tasks[0].task_id, tasks[0].lease_id, std::string(64, 'a'));
-    S().Complete(w, tasks[1].task_id, tasks[1].lease_id, std::string(64, 'b'));
-    S().Fail(w, tasks[2].task_id, tasks[2].lease_id, "flaky");
+    S().Complete(w, tasks[0].task_id, tasks[0].lease_id, tasks[0].lease_token,
+                 std::string(64, 'a'));
+    S().Complete(w, tasks[1].task_id, tasks[1].lease_id, tasks[1].lease_token,
+                 std::string(64, 'b'));
+    S().Fail(w, tasks[2].task_id, tasks[2].lease_id, tasks[2].lease_token, "flaky");
     LeasedTask outstanding = Lease(w);  // re-lease of task 2, in flight across the restart
     const v1::JobStatus before = S().GetJob(job);
 
@@ -379,8 +389,10 @@ TEST_F(SchedulerTest, RestartKeepsStateLeasesAndFinishedWork) {
     // The outstanding lease got a fresh deadline: its worker may still heartbeat and
     // complete it with the lease id it holds; the worker id is still known.
     EXPECT_EQ(S().Sweep(), 0);
-    EXPECT_TRUE(S().Heartbeat(w, outstanding.task_id, outstanding.lease_id).lease_valid);
-    S().Complete(w, outstanding.task_id, outstanding.lease_id, std::string(64, 'd'));
+    EXPECT_TRUE(S().Heartbeat(w, outstanding.task_id, outstanding.lease_id, outstanding.lease_token)
+                    .lease_valid);
+    S().Complete(w, outstanding.task_id, outstanding.lease_id, outstanding.lease_token,
+                 std::string(64, 'd'));
     // Finished tasks are never handed out again; lease ids keep growing.
     std::set<int64_t> done = {tasks[0].task_id, tasks[1].task_id, outstanding.task_id};
     int64_t last_lease = outstanding.lease_id;
@@ -411,7 +423,7 @@ TEST_F(SchedulerTest, CompletionsArePersistedPerTask) {
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
     S().AddJob(MakeJob("shot", 0));
     LeasedTask t = Lease(w);
-    S().Complete(w, t.task_id, t.lease_id, std::string(64, 'e'));
+    S().Complete(w, t.task_id, t.lease_id, t.lease_token, std::string(64, 'e'));
     scheduler_.reset();
     Store store(DbPath());
     std::optional<TaskRow> row = store.GetTask(t.task_id);
@@ -427,7 +439,7 @@ TEST_F(SchedulerTest, ChangesAreReportedToTheListener) {
     std::string job = S().AddJob(MakeJob("shot", 0));
     LeasedTask t = Lease(w);
     listener_.changes.clear();
-    S().Fail(w, t.task_id, t.lease_id, "boom");
+    S().Fail(w, t.task_id, t.lease_id, t.lease_token, "boom");
     ASSERT_FALSE(listener_.changes.empty());
     EXPECT_NE(listener_.changes[0].find("failed on alpha: boom"), std::string::npos)
         << listener_.changes[0];
@@ -453,7 +465,9 @@ TEST_F(SchedulerTest, LaterStagesAreLeasedOnlyAfterTheirInputsAreMerged) {
         EXPECT_TRUE(photons[i].inputs.empty());
     }
     // Completed in reverse order: the merge still gets them in task order.
-    for (int i : {2, 0, 1}) S().Complete(w, photons[i].task_id, photons[i].lease_id, Hash('a' + i));
+    for (int i : {2, 0, 1})
+        S().Complete(w, photons[i].task_id, photons[i].lease_id, photons[i].lease_token,
+                     Hash('a' + i));
     EXPECT_FALSE(S().TryLease(w).has_value()) << "irradiance-1 leased before photons merged";
     ASSERT_EQ(listener_.stages_ready.size(), 1u);
     EXPECT_EQ(listener_.stages_ready[0], std::make_tuple(job, 1, 0));
@@ -485,7 +499,8 @@ TEST_F(SchedulerTest, LaterStagesAreLeasedOnlyAfterTheirInputsAreMerged) {
     EXPECT_EQ(pass1[0].inputs[0].stage, "photons");
     EXPECT_EQ(pass1[0].inputs[0].hash, Hash('p'));
     EXPECT_EQ(pass1[0].inputs[0].size, 1234u);
-    for (const LeasedTask& t : pass1) S().Complete(w, t.task_id, t.lease_id, Hash('i'));
+    for (const LeasedTask& t : pass1)
+        S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('i'));
     S().StageMerged(job, 1, 1, Hash('1'), 10);
 
     std::vector<LeasedTask> pass2;
@@ -495,7 +510,8 @@ TEST_F(SchedulerTest, LaterStagesAreLeasedOnlyAfterTheirInputsAreMerged) {
     EXPECT_EQ(pass2[1].task_index, 1);
     ASSERT_EQ(pass2[1].inputs.size(), 2u);
     EXPECT_EQ(pass2[1].inputs[1].stage, "irradiance-1");
-    for (const LeasedTask& t : pass2) S().Complete(w, t.task_id, t.lease_id, Hash('j'));
+    for (const LeasedTask& t : pass2)
+        S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('j'));
     EXPECT_EQ(S().GetMergeInput(job, 1, 2).base_hash, Hash('1'));  // pass 2 extends pass 1
     S().StageMerged(job, 1, 2, Hash('2'), 20);
     // A merge recorded twice (a restart in between) changes nothing.
@@ -508,7 +524,8 @@ TEST_F(SchedulerTest, LaterStagesAreLeasedOnlyAfterTheirInputsAreMerged) {
     ASSERT_EQ(render[0].inputs.size(), 2u);
     EXPECT_EQ(render[0].inputs[0].hash, Hash('p'));
     EXPECT_EQ(render[0].inputs[1].hash, Hash('2'));
-    for (const LeasedTask& t : render) S().Complete(w, t.task_id, t.lease_id, Hash('r'));
+    for (const LeasedTask& t : render)
+        S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('r'));
     ASSERT_EQ(listener_.ready.size(), 1u);
     EXPECT_EQ(listener_.stages_ready.size(), 3u);
     FrameAssemblyInput in = S().GetAssemblyInput(job, 1);
@@ -531,7 +548,8 @@ TEST_F(SchedulerTest, EachFrameWaitsForItsOwnMerges) {
     ASSERT_EQ(leased.size(), 6u);
     EXPECT_EQ(leased[3].frame, 2);
     EXPECT_EQ(leased[3].stage, "photons");
-    for (const LeasedTask& t : leased) S().Complete(w, t.task_id, t.lease_id, Hash('a'));
+    for (const LeasedTask& t : leased)
+        S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('a'));
     S().StageMerged(job, 2, 0, Hash('p'), 1);
     LeasedTask next = Lease(w);
     EXPECT_EQ(next.frame, 2);
@@ -544,7 +562,7 @@ TEST_F(SchedulerTest, RestartBetweenCompletionAndMergeFindsTheMergeAgain) {
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
     std::string job = S().AddJob(MakeStagedJob("staged"));
     while (std::optional<LeasedTask> t = S().TryLease(w))
-        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+        S().Complete(w, t->task_id, t->lease_id, t->lease_token, Hash('a'));
     Open();
     auto awaiting = S().StagesAwaitingMerge();
     ASSERT_EQ(awaiting.size(), 1u);
@@ -567,7 +585,7 @@ TEST_F(SchedulerTest, RequeuedTaskOfAnArtifactStageDelaysItsMerge) {
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
     std::string job = S().AddJob(MakeStagedJob("staged"));
     while (std::optional<LeasedTask> t = S().TryLease(w))
-        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+        S().Complete(w, t->task_id, t->lease_id, t->lease_token, Hash('a'));
     StageMergeInput in = S().GetMergeInput(job, 1, 0);
     S().RequeueDoneTasks(job, 1, 0, {{1, in.completions[1]}});
     EXPECT_FALSE(S().GetMergeInput(job, 1, 0).ready);
@@ -578,7 +596,7 @@ TEST_F(SchedulerTest, RequeuedTaskOfAnArtifactStageDelaysItsMerge) {
     EXPECT_EQ(again.attempt, 2);
     EXPECT_FALSE(S().TryLease(w).has_value());
     listener_.stages_ready.clear();
-    S().Complete(w, again.task_id, again.lease_id, Hash('b'));
+    S().Complete(w, again.task_id, again.lease_id, again.lease_token, Hash('b'));
     EXPECT_EQ(listener_.stages_ready.size(), 1u);
     EXPECT_EQ(S().GetMergeInput(job, 1, 0).results[1].second, Hash('b'));
 }
@@ -587,11 +605,168 @@ TEST_F(SchedulerTest, CancelledJobReleasesNothingOnALateMerge) {
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
     std::string job = S().AddJob(MakeStagedJob("staged"));
     while (std::optional<LeasedTask> t = S().TryLease(w))
-        S().Complete(w, t->task_id, t->lease_id, Hash('a'));
+        S().Complete(w, t->task_id, t->lease_id, t->lease_token, Hash('a'));
     S().Cancel(job);
     EXPECT_FALSE(S().GetMergeInput(job, 1, 0).job_running);
     S().StageMerged(job, 1, 0, Hash('p'), 1);
     EXPECT_FALSE(S().TryLease(w).has_value());
+}
+
+// Lease ids are sequential: a guessed one must not let another caller complete, fail or
+// heartbeat the task, nor learn the current lease from the error.
+TEST_F(SchedulerTest, ALeaseIsHonouredOnlyFromItsWorkerWithItsToken) {
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    S().AddJob(MakeJob("shot", 0, 2));
+    LeasedTask first = Lease(a);
+    LeasedTask t = Lease(a);
+    EXPECT_EQ(t.lease_token.size(), 32u);
+    EXPECT_NE(t.lease_token, first.lease_token);
+    const std::string hash = Hash('a');
+    std::string wrong = t.lease_token;
+    wrong[0] = wrong[0] == '0' ? '1' : '0';
+    auto expect_refused = [&](const std::function<void()>& call, const char* what) {
+        try {
+            call();
+            ADD_FAILURE() << what << " was accepted";
+        } catch (const LeaseNotHeld& e) {
+            const std::string text = e.what();
+            EXPECT_EQ(text.find(t.lease_token), std::string::npos) << text;
+            EXPECT_EQ(text.find("lease " + std::to_string(t.lease_id)), std::string::npos) << text;
+        }
+    };
+    expect_refused([&] { S().Complete(b, t.task_id, t.lease_id, t.lease_token, hash); },
+                   "a completion by another worker");
+    expect_refused([&] { S().Complete(a, t.task_id, t.lease_id, wrong, hash); },
+                   "a completion with a wrong token");
+    expect_refused([&] { S().Complete(a, t.task_id, t.lease_id, "", hash); },
+                   "a completion without a token");
+    expect_refused([&] { S().Fail(b, t.task_id, t.lease_id, t.lease_token, "forged"); },
+                   "a failure by another worker");
+    expect_refused([&] { S().Fail(a, t.task_id, t.lease_id, wrong, "forged"); },
+                   "a failure with a wrong token");
+    expect_refused([&] { S().Heartbeat(b, t.task_id, t.lease_id, t.lease_token); },
+                   "a heartbeat by another worker");
+    expect_refused([&] { S().CheckLease(a, t.task_id, t.lease_id, wrong); },
+                   "a check with a wrong token");
+    // A guessed stale lease id is only stale, and says nothing of the current lease.
+    try {
+        S().Complete(b, t.task_id, t.lease_id - 1, "", hash);
+        ADD_FAILURE() << "a stale lease was accepted";
+    } catch (const CoordinatorError& e) {
+        EXPECT_EQ(static_cast<int>(e.Code()), static_cast<int>(ErrorCode::kFailedPrecondition));
+        EXPECT_EQ(std::string(e.what()).find("lease " + std::to_string(t.lease_id)),
+                  std::string::npos)
+            << e.what();
+    }
+    // Nothing changed: the holder still completes it.
+    EXPECT_TRUE(S().GetJob(FormatJobId(1)).failures().empty());
+    EXPECT_TRUE(S().Heartbeat(a, t.task_id, t.lease_id, t.lease_token).lease_valid);
+    S().Complete(a, t.task_id, t.lease_id, t.lease_token, hash);
+    EXPECT_EQ(S().GetJob(FormatJobId(1)).tasks_done(), 1);
+}
+
+TEST_F(SchedulerTest, AFailedTaskGoesToAnotherLiveWorker) {
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    S().AddJob(MakeJob("shot", 0, 1, 32, 32));  // one task
+    LeasedTask t = Lease(a);
+    S().Fail(a, t.task_id, t.lease_id, t.lease_token, "driver crash");
+    EXPECT_FALSE(S().TryLease(a).has_value()) << "handed straight back to the failing worker";
+    LeasedTask on_b = Lease(b);
+    EXPECT_EQ(on_b.task_id, t.task_id);
+    EXPECT_EQ(on_b.attempt, 2);
+    // Failed on beta now: alpha may take it.
+    S().Fail(b, on_b.task_id, on_b.lease_id, on_b.lease_token, "driver crash");
+    EXPECT_FALSE(S().TryLease(b).has_value());
+    LeasedTask back_on_a = Lease(a);
+    EXPECT_EQ(back_on_a.task_id, t.task_id);
+    EXPECT_EQ(back_on_a.attempt, 3);
+}
+
+TEST_F(SchedulerTest, AFailingWorkerTakesOtherTasksAndRetriesOnceTheOthersAreGone) {
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    S().AddJob(MakeJob("shot", 0, 1, 64, 32));  // two tasks
+    LeasedTask t = Lease(a);
+    EXPECT_EQ(t.task_index, 0);
+    S().Fail(a, t.task_id, t.lease_id, t.lease_token, "boom");
+    LeasedTask next = Lease(a);
+    EXPECT_EQ(next.task_index, 1) << "the task that just failed on alpha came back to it";
+    S().Complete(a, next.task_id, next.lease_id, next.lease_token, Hash('a'));
+    // beta has not been seen for a lease period: alpha retries the task itself.
+    clock_.now += options_.lease_ms + 1;
+    LeasedTask retry = Lease(a);
+    EXPECT_EQ(retry.task_id, t.task_id);
+    EXPECT_EQ(retry.attempt, 2);
+}
+
+TEST_F(SchedulerTest, ALoneWorkerRetriesAndTheJobFailsAfterMaxAttempts) {
+    std::string w = S().RegisterWorker("alone", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 1, 32, 32));
+    for (int attempt = 1; attempt <= options_.max_attempts; ++attempt) {
+        LeasedTask t = Lease(w);
+        EXPECT_EQ(t.attempt, attempt);
+        S().Fail(w, t.task_id, t.lease_id, t.lease_token, "boom");
+    }
+    v1::JobStatus st = S().GetJob(job);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_FAILED);
+    EXPECT_EQ(st.failures_size(), options_.max_attempts);
+    EXPECT_FALSE(S().TryLease(w).has_value());
+}
+
+TEST_F(SchedulerTest, AWorkerFailingTooManyTasksInARowIsPutAsideForAWhile) {
+    options_.max_attempts = 100;
+    Open();
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 4, 64, 32));  // eight tasks
+    auto fail_one = [&] {
+        LeasedTask t = Lease(a);
+        S().Fail(a, t.task_id, t.lease_id, t.lease_token, "bad GPU");
+    };
+    // A success in between resets the count.
+    for (int i = 0; i < options_.max_failures_in_a_row - 1; ++i) fail_one();
+    LeasedTask ok = Lease(a);
+    S().Complete(a, ok.task_id, ok.lease_id, ok.lease_token, Hash('a'));
+    for (int i = 0; i < options_.max_failures_in_a_row - 1; ++i) fail_one();
+    EXPECT_TRUE(S().WorkersPutAside().empty());
+    EXPECT_TRUE(S().TryLease(a).has_value());
+
+    Open();  // the count is kept in memory: a restart starts afresh
+    for (int i = 0; i < options_.max_failures_in_a_row; ++i) fail_one();
+    EXPECT_EQ(S().WorkersPutAside(), std::vector<std::string>{"alpha"});
+    EXPECT_EQ(S().TimesWorkersPutAside(), 1);
+    EXPECT_FALSE(S().TryLease(a).has_value()) << "a worker put aside got a lease";
+    // Others still get work meanwhile.
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    EXPECT_TRUE(S().TryLease(b).has_value());
+    clock_.now += options_.put_aside_ms - 1;
+    EXPECT_FALSE(S().TryLease(a).has_value());
+    clock_.now += 1;
+    EXPECT_TRUE(S().WorkersPutAside().empty());
+    EXPECT_TRUE(S().TryLease(a).has_value()) << "not back after the period";
+    EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+}
+
+// State of schema 2 (no lease tokens) is upgraded in place; its outstanding leases keep
+// an empty token, which their (older) workers send.
+TEST_F(SchedulerTest, StateOfSchemaTwoIsUpgraded) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    scheduler_.reset();
+    {
+        SqliteDb old(DbPath());
+        old.Exec("ALTER TABLE tasks DROP COLUMN lease_token");
+        old.Exec("ALTER TABLE tasks DROP COLUMN failed_worker_id");
+        old.Exec("PRAGMA user_version = 2");
+    }
+    Open();
+    S().Complete(w, t.task_id, t.lease_id, "", Hash('a'));
+    LeasedTask next = Lease(w);
+    EXPECT_EQ(next.lease_token.size(), 32u);
+    S().Complete(w, next.task_id, next.lease_id, next.lease_token, Hash('b'));
+    EXPECT_EQ(S().GetJob(job).tasks_done(), 2);
 }
 
 // State from a coordinator without stored settings cannot be planned: refused with a

@@ -324,6 +324,7 @@ grpc::Status Worker::Heartbeat(const std::shared_ptr<Active>& task) {
     if (task) {
         req.set_task_id(task->task.task_id());
         req.set_lease_id(task->task.lease_id());
+        req.set_lease_token(task->task.lease_token());
         req.set_progress(task->progress.load());
     }
     v1::HeartbeatResponse resp;
@@ -331,6 +332,13 @@ grpc::Status Worker::Heartbeat(const std::shared_ptr<Active>& task) {
     if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
         Reregister(id);
         return grpc::Status::OK;  // not a failure of the connection
+    }
+    if (st.error_code() == grpc::StatusCode::PERMISSION_DENIED && task) {
+        // The lease is not ours (e.g. we registered again under a new id since).
+        if (!task->reporting && !task->abandoned.exchange(true))
+            spdlog::warn("{}: the coordinator refuses our lease ({}); abandoning it",
+                         Describe(task->task), StatusText(st));
+        return grpc::Status::OK;
     }
     if (st.ok() && task && (resp.cancelled() || !resp.lease_valid()) && !task->reporting &&
         !task->abandoned.exchange(true)) {
@@ -483,6 +491,7 @@ void Worker::Complete(Active& task, const std::string& result) {
         req.set_worker_id(worker_id);
         req.set_task_id(t.task_id());
         req.set_lease_id(t.lease_id());
+        req.set_lease_token(t.lease_token());
         if (inline_result)
             req.set_result(result);
         else
@@ -517,6 +526,7 @@ void Worker::Fail(Active& task, std::string message) {
             req.set_worker_id(worker_id);
             req.set_task_id(t.task_id());
             req.set_lease_id(t.lease_id());
+            req.set_lease_token(t.lease_token());
             req.set_message(message);
             v1::FailTaskResponse resp;
             return workers_.FailTask(&ctx, req, &resp);
@@ -546,8 +556,8 @@ grpc::Status Worker::CallAsWorker(const char* what, const Active& task,
     std::string id = WorkerId();
     grpc::Status st = CallWithRetry(what, task, [&] { return call(id); });
     if (st.error_code() != grpc::StatusCode::NOT_FOUND || !IsUnknownWorker(id)) return st;
-    // Leases are fenced by lease id, not by worker: the task may still be ours to finish
-    // under the worker's new id.
+    // The coordinator knows us no more (its state was lost): a lease is held by the
+    // worker id it was given to, so the call will most likely be refused, but try once.
     Reregister(id);
     id = WorkerId();
     return CallWithRetry(what, task, [&] { return call(id); });
