@@ -1,9 +1,20 @@
 #pragma once
 
-// The chi-square distribution's tail, shared by the statistical tests (warps, BSDFs).
+// Chi-square machinery shared by the statistical tests (warps, BSDFs, light emission):
+// the distribution's tail, Pearson's test with pooling of sparse cells, and a grid of
+// cells with exact expected counts.
+
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
 
 namespace tessera {
 
@@ -42,6 +53,134 @@ inline double RegularizedGammaQ(double a, double x) {
 // Probability that a chi-square variable with `dof` degrees of freedom exceeds `chi2`.
 inline double ChiSquarePValue(double chi2, int dof) {
     return RegularizedGammaQ(0.5 * dof, 0.5 * chi2);
+}
+
+inline constexpr double kChiSquareSignificance = 0.01;
+
+struct ChiSquareResult {
+    double p_value = 1;
+    double statistic = 0;
+    int dof = 0;
+    std::string failure;  // set when the test fails outright (a sample where none can be)
+
+    bool Passed() const { return failure.empty() && p_value >= kChiSquareSignificance; }
+};
+
+inline std::ostream& operator<<(std::ostream& os, const ChiSquareResult& r) {
+    if (!r.failure.empty()) return os << r.failure;
+    return os << "chi2 = " << r.statistic << ", dof = " << r.dof << ", p = " << r.p_value;
+}
+
+// Pearson's test of observed against expected counts. Cells are visited from the least
+// expected up; those expecting fewer than `min_expected` samples are pooled until the
+// pool reaches it. A sample in a cell that expects exactly none fails the test at once.
+inline ChiSquareResult ChiSquareTest(const std::vector<double>& observed,
+                                     const std::vector<double>& expected, double min_expected = 5) {
+    ChiSquareResult r;
+    std::vector<size_t> order(observed.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(),
+              [&](size_t a, size_t b) { return expected[a] < expected[b]; });
+    double pooled_obs = 0, pooled_exp = 0;
+    int cells = 0;
+    for (size_t i : order) {
+        if (expected[i] == 0) {
+            if (observed[i] > 0) {
+                std::ostringstream os;
+                os << observed[i] << " samples in cell " << i << ", whose expected count is 0";
+                r.failure = os.str();
+                r.p_value = 0;
+                return r;
+            }
+        } else if (expected[i] < min_expected || (pooled_exp > 0 && pooled_exp < min_expected)) {
+            pooled_obs += observed[i];
+            pooled_exp += expected[i];
+        } else {
+            r.statistic += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
+            ++cells;
+        }
+    }
+    if (pooled_exp > 0) {
+        r.statistic += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp;
+        ++cells;
+    }
+    r.dof = cells - 1;
+    r.p_value = r.dof > 0 ? ChiSquarePValue(r.statistic, r.dof) : 1;
+    return r;
+}
+
+inline testing::AssertionResult Fits(const ChiSquareResult& r) {
+    // TESSERA_CHI2_VERBOSE=1 prints every statistic, to see how close passing tests come.
+    if (std::getenv("TESSERA_CHI2_VERBOSE")) {
+        std::ostringstream os;
+        os << r;
+        std::printf("    %s\n", os.str().c_str());
+    }
+    if (r.Passed()) return testing::AssertionSuccess() << r;
+    return testing::AssertionFailure() << "rejected at " << kChiSquareSignificance << ": " << r;
+}
+
+// An nx x ny grid of cells over the rectangle [x0, x1] x [y0, y1] of some
+// parameterisation of a sampling domain, plus one cell, expecting nothing, for samples
+// outside it (or NaN). Values within `tolerance` (relative) outside the rectangle, from
+// float round-off, are clamped in.
+struct Grid {
+    double x0, x1, y0, y1;
+    int nx, ny;
+    double tolerance = 1e-6;
+
+    int CellCount() const { return nx * ny + 1; }
+    int Outside() const { return nx * ny; }
+    int Cell(double x, double y) const {
+        double fx = (x - x0) / (x1 - x0), fy = (y - y0) / (y1 - y0);
+        if (!(fx >= -tolerance && fx <= 1 + tolerance && fy >= -tolerance && fy <= 1 + tolerance))
+            return Outside();
+        int ix = std::clamp(static_cast<int>(std::floor(fx * nx)), 0, nx - 1);
+        int iy = std::clamp(static_cast<int>(std::floor(fy * ny)), 0, ny - 1);
+        return iy * nx + ix;
+    }
+};
+
+// Integrates f over [x0, x1] x [y0, y1] with 2 x 2 panels of 5 x 5-point Gauss-Legendre:
+// exact for polynomial densities and never evaluated on a cell's edge, where a density
+// may jump.
+inline double IntegrateRect(const std::function<double(double, double)>& f, double x0, double x1,
+                            double y0, double y1) {
+    static const double kNodes[5] = {-0.9061798459386640, -0.5384693101056831, 0.0,
+                                     0.5384693101056831, 0.9061798459386640};
+    static const double kWeights[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889,
+                                       0.4786286704993665, 0.2369268850561891};
+    double sum = 0;
+    for (int px = 0; px < 2; ++px) {
+        double ax = x0 + (x1 - x0) * px / 2, bx = x0 + (x1 - x0) * (px + 1) / 2;
+        for (int py = 0; py < 2; ++py) {
+            double ay = y0 + (y1 - y0) * py / 2, by = y0 + (y1 - y0) * (py + 1) / 2;
+            for (int i = 0; i < 5; ++i)
+                for (int j = 0; j < 5; ++j) {
+                    double x = 0.5 * (ax + bx) + 0.5 * (bx - ax) * kNodes[i];
+                    double y = 0.5 * (ay + by) + 0.5 * (by - ay) * kNodes[j];
+                    sum += kWeights[i] * kWeights[j] * f(x, y) * 0.25 * (bx - ax) * (by - ay);
+                }
+        }
+    }
+    return sum;
+}
+
+// The expected counts of n samples of `density` (a pdf on the grid's parameters) in the
+// grid's cells, the outside cell expecting none.
+inline std::vector<double> ExpectedCounts(const Grid& grid,
+                                          const std::function<double(double, double)>& density,
+                                          int n) {
+    std::vector<double> expected(grid.CellCount());
+    for (int iy = 0; iy < grid.ny; ++iy)
+        for (int ix = 0; ix < grid.nx; ++ix) {
+            double x0 = grid.x0 + (grid.x1 - grid.x0) * ix / grid.nx;
+            double x1 = grid.x0 + (grid.x1 - grid.x0) * (ix + 1) / grid.nx;
+            double y0 = grid.y0 + (grid.y1 - grid.y0) * iy / grid.ny;
+            double y1 = grid.y0 + (grid.y1 - grid.y0) * (iy + 1) / grid.ny;
+            expected[iy * grid.nx + ix] = n * IntegrateRect(density, x0, x1, y0, y1);
+        }
+    return expected;
 }
 
 }  // namespace tessera

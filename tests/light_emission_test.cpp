@@ -29,7 +29,6 @@
 namespace tessera {
 namespace {
 
-constexpr double kSignificance = 0.01;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPiD = std::numbers::pi;
 
@@ -218,109 +217,8 @@ TEST(LightEmissionTest, InfiniteLightPhotonsDeliverTheRightPowerToASphere) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Chi-square machinery (as in sampling_test.cpp)
-
-struct ChiSquareResult {
-    double p_value = 1;
-    double statistic = 0;
-    int dof = 0;
-    std::string failure;  // set when the test fails outright (a sample where none can be)
-
-    bool Passed() const { return failure.empty() && p_value >= kSignificance; }
-};
-
-std::ostream& operator<<(std::ostream& os, const ChiSquareResult& r) {
-    if (!r.failure.empty()) return os << r.failure;
-    return os << "chi2 = " << r.statistic << ", dof = " << r.dof << ", p = " << r.p_value;
-}
-
-// Pearson's test; cells expecting fewer than `min_expected` samples are pooled, and a
-// sample in a cell that expects none fails at once.
-ChiSquareResult ChiSquareTest(const std::vector<double>& observed,
-                              const std::vector<double>& expected, double min_expected = 5) {
-    ChiSquareResult r;
-    std::vector<size_t> order(observed.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&](size_t a, size_t b) { return expected[a] < expected[b]; });
-    double pooled_obs = 0, pooled_exp = 0;
-    int cells = 0;
-    for (size_t i : order) {
-        if (expected[i] == 0) {
-            if (observed[i] > 0) {
-                std::ostringstream os;
-                os << observed[i] << " samples in cell " << i << ", whose expected count is 0";
-                r.failure = os.str();
-                r.p_value = 0;
-                return r;
-            }
-        } else if (expected[i] < min_expected || (pooled_exp > 0 && pooled_exp < min_expected)) {
-            pooled_obs += observed[i];
-            pooled_exp += expected[i];
-        } else {
-            r.statistic += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
-            ++cells;
-        }
-    }
-    if (pooled_exp > 0) {
-        r.statistic += (pooled_obs - pooled_exp) * (pooled_obs - pooled_exp) / pooled_exp;
-        ++cells;
-    }
-    r.dof = cells - 1;
-    r.p_value = r.dof > 0 ? ChiSquarePValue(r.statistic, r.dof) : 1;
-    return r;
-}
-
-testing::AssertionResult Fits(const ChiSquareResult& r) {
-    if (std::getenv("TESSERA_CHI2_VERBOSE")) {
-        std::ostringstream os;
-        os << r;
-        std::printf("    %s\n", os.str().c_str());
-    }
-    if (r.Passed()) return testing::AssertionSuccess() << r;
-    return testing::AssertionFailure() << "rejected at " << kSignificance << ": " << r;
-}
-
-// An nx x ny grid over [x0, x1] x [y0, y1] plus one cell, expecting nothing, for samples
-// outside it. Values a little outside (round-off of a frame change) are clamped in.
-struct Grid {
-    double x0, x1, y0, y1;
-    int nx, ny;
-
-    int CellCount() const { return nx * ny + 1; }
-    int Outside() const { return nx * ny; }
-    int Cell(double x, double y) const {
-        constexpr double kTol = 1e-5;
-        double fx = (x - x0) / (x1 - x0), fy = (y - y0) / (y1 - y0);
-        if (!(fx >= -kTol && fx <= 1 + kTol && fy >= -kTol && fy <= 1 + kTol)) return Outside();
-        int ix = std::clamp(static_cast<int>(std::floor(fx * nx)), 0, nx - 1);
-        int iy = std::clamp(static_cast<int>(std::floor(fy * ny)), 0, ny - 1);
-        return iy * nx + ix;
-    }
-};
-
-// 2 x 2 panels of 5 x 5-point Gauss-Legendre, never evaluated on a cell's edge.
-double IntegrateRect(const std::function<double(double, double)>& f, double x0, double x1,
-                     double y0, double y1) {
-    static const double kNodes[5] = {-0.9061798459386640, -0.5384693101056831, 0.0,
-                                     0.5384693101056831, 0.9061798459386640};
-    static const double kWeights[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889,
-                                       0.4786286704993665, 0.2369268850561891};
-    double sum = 0;
-    for (int px = 0; px < 2; ++px) {
-        double ax = x0 + (x1 - x0) * px / 2, bx = x0 + (x1 - x0) * (px + 1) / 2;
-        for (int py = 0; py < 2; ++py) {
-            double ay = y0 + (y1 - y0) * py / 2, by = y0 + (y1 - y0) * (py + 1) / 2;
-            for (int i = 0; i < 5; ++i)
-                for (int j = 0; j < 5; ++j) {
-                    double x = 0.5 * (ax + bx) + 0.5 * (bx - ax) * kNodes[i];
-                    double y = 0.5 * (ay + by) + 0.5 * (by - ay) * kNodes[j];
-                    sum += kWeights[i] * kWeights[j] * f(x, y) * 0.25 * (bx - ax) * (by - ay);
-                }
-        }
-    }
-    return sum;
-}
+// Chi-square tests (tests/chi_square.h); directions land a little outside the grid
+// after a change of frame, hence the looser tolerance of the grids below.
 
 // Draws n SampleLe samples, maps each to grid parameters with `to_grid` (NaN: outside;
 // an empty sample counts as outside too) and tests them against `density` on the grid.
@@ -328,7 +226,7 @@ ChiSquareResult ChiSquareOnGrid(
     const Grid& grid, const Light& light,
     const std::function<std::pair<double, double>(const LightLeSample&)>& to_grid,
     const std::function<double(double, double)>& density, int n, uint64_t seed) {
-    std::vector<double> observed(grid.CellCount()), expected(grid.CellCount());
+    std::vector<double> observed(grid.CellCount());
     Pcg32 rng(Hash(seed));
     for (int i = 0; i < n; ++i) {
         Vec2 u_pos(rng.NextFloat(), rng.NextFloat()), u_dir(rng.NextFloat(), rng.NextFloat());
@@ -340,15 +238,7 @@ ChiSquareResult ChiSquareOnGrid(
         auto [x, y] = to_grid(*s);
         observed[grid.Cell(x, y)] += 1;
     }
-    for (int iy = 0; iy < grid.ny; ++iy)
-        for (int ix = 0; ix < grid.nx; ++ix) {
-            double x0 = grid.x0 + (grid.x1 - grid.x0) * ix / grid.nx;
-            double x1 = grid.x0 + (grid.x1 - grid.x0) * (ix + 1) / grid.nx;
-            double y0 = grid.y0 + (grid.y1 - grid.y0) * iy / grid.ny;
-            double y1 = grid.y0 + (grid.y1 - grid.y0) * (iy + 1) / grid.ny;
-            expected[iy * grid.nx + ix] = n * IntegrateRect(density, x0, x1, y0, y1);
-        }
-    return ChiSquareTest(observed, expected);
+    return ChiSquareTest(observed, ExpectedCounts(grid, density, n));
 }
 
 // A unit direction as (z, phi) in `frame`, where the solid angle is dz dphi.
@@ -371,7 +261,7 @@ ChiSquareResult ChiSquareEmittedDirections(const Light& light,
                                            const std::function<Frame(const LightLeSample&)>& frame,
                                            const Frame& density_frame, const Ray& density_ray,
                                            const Vec3& density_n, double z_min, uint64_t seed) {
-    Grid grid{z_min, 1, 0, 2 * kPiD, 32, 32};
+    Grid grid{z_min, 1, 0, 2 * kPiD, 32, 32, 1e-5};
     auto to_grid = [&](const LightLeSample& s) { return DirectionToGrid(frame(s), s.ray.d); };
     auto density = [&](double z, double phi) {
         Ray ray = density_ray;
@@ -402,7 +292,7 @@ TEST(LightEmissionChiSquareTest, TriangleDirections) {
 
 TEST(LightEmissionChiSquareTest, TriangleOriginsAreUniformByArea) {
     auto light = MakeTriangleAreaLight(FanRectangle(), Rgb(1), false);
-    Grid grid{0, 2, 0, 1, 16, 16};
+    Grid grid{0, 2, 0, 1, 16, 16, 1e-5};
     auto to_grid = [](const LightLeSample& s) {
         if (std::abs(s.ray.o.z - 1) > 1e-5f) return std::pair(kNaN, kNaN);
         return std::pair(double(s.ray.o.x), double(s.ray.o.y));
@@ -432,7 +322,7 @@ TEST(LightEmissionChiSquareTest, SphereDirectionsAndOrigins) {
             *light, [](const LightLeSample& s) { return Frame(s.n); }, Frame(n),
             Ray{center + n * radius, n}, n, -1, 120 + two_sided)));
         // Origins: uniform on the sphere, the normal pointing at them from the centre.
-        Grid grid{-1, 1, 0, 2 * kPiD, 16, 32};
+        Grid grid{-1, 1, 0, 2 * kPiD, 16, 32, 1e-5};
         auto to_grid = [&](const LightLeSample& s) {
             if (Distance(s.ray.o, center + s.n * radius) > 1e-5f) return std::pair(kNaN, kNaN);
             return DirectionToGrid(Frame(), s.n);
@@ -495,7 +385,7 @@ TEST(LightEmissionChiSquareTest, InfiniteLightOriginsAreUniformOnTheDisk) {
         auto light = std::string(name) == "Directional"
                          ? Prepared(MakeDirectionalLight(Vec3(0.3f, -1, 0.2f), Rgb(1)))
                          : Prepared(MakeConstantEnvironmentLight(Rgb(1)));
-        Grid grid{0, 1, 0, 2 * kPiD, 16, 32};
+        Grid grid{0, 1, 0, 2 * kPiD, 16, 32, 1e-5};
         auto to_grid = [&](const LightLeSample& s) {
             Frame frame(-s.ray.d);
             Vec3 l = frame.ToLocal(s.ray.o - c);

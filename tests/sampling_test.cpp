@@ -29,7 +29,6 @@
 namespace tessera {
 namespace {
 
-constexpr double kSignificance = 0.01;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPiD = std::numbers::pi, kInvPiD = std::numbers::inv_pi;
 
@@ -38,135 +37,20 @@ double Sqr(double x) { return x * x; }
 // ---------------------------------------------------------------------------------------
 // Chi-square machinery
 
-struct ChiSquareResult {
-    double p_value = 1;
-    double statistic = 0;
-    int dof = 0;
-    std::string failure;  // set when the test fails outright (a sample where none can be)
-
-    bool Passed() const { return failure.empty() && p_value >= kSignificance; }
-};
-
-std::ostream& operator<<(std::ostream& os, const ChiSquareResult& r) {
-    if (!r.failure.empty()) return os << r.failure;
-    return os << "chi2 = " << r.statistic << ", dof = " << r.dof << ", p = " << r.p_value;
-}
-
-// Pearson's test of observed against expected counts. Cells are visited from the least
-// expected up; those expecting fewer than `min_expected` samples are pooled until the
-// pool reaches it. A sample in a cell that expects exactly none fails the test at once.
-ChiSquareResult ChiSquareTest(const std::vector<double>& observed,
-                              const std::vector<double>& expected, double min_expected = 5) {
-    ChiSquareResult r;
-    std::vector<size_t> order(observed.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&](size_t a, size_t b) { return expected[a] < expected[b]; });
-    double pooled_obs = 0, pooled_exp = 0;
-    int cells = 0;
-    for (size_t i : order) {
-        if (expected[i] == 0) {
-            if (observed[i] > 0) {
-                std::ostringstream os;
-                os << observed[i] << " samples in cell " << i << ", whose expected count is 0";
-                r.failure = os.str();
-                r.p_value = 0;
-                return r;
-            }
-        } else if (expected[i] < min_expected || (pooled_exp > 0 && pooled_exp < min_expected)) {
-            pooled_obs += observed[i];
-            pooled_exp += expected[i];
-        } else {
-            r.statistic += Sqr(observed[i] - expected[i]) / expected[i];
-            ++cells;
-        }
-    }
-    if (pooled_exp > 0) {
-        r.statistic += Sqr(pooled_obs - pooled_exp) / pooled_exp;
-        ++cells;
-    }
-    r.dof = cells - 1;
-    r.p_value = r.dof > 0 ? ChiSquarePValue(r.statistic, r.dof) : 1;
-    return r;
-}
-
-testing::AssertionResult Fits(const ChiSquareResult& r) {
-    // TESSERA_CHI2_VERBOSE=1 prints every statistic, to see how close passing tests come.
-    if (std::getenv("TESSERA_CHI2_VERBOSE")) {
-        std::ostringstream os;
-        os << r;
-        std::printf("    %s\n", os.str().c_str());
-    }
-    if (r.Passed()) return testing::AssertionSuccess() << r;
-    return testing::AssertionFailure() << "rejected at " << kSignificance << ": " << r;
-}
-
-// An nx x ny grid of cells over the rectangle [x0, x1] x [y0, y1] of some
-// parameterisation of a sampling domain, plus one cell, expecting nothing, for samples
-// outside it (or NaN). Values a hair outside the rectangle (float round-off) are clamped in.
-struct Grid {
-    double x0, x1, y0, y1;
-    int nx, ny;
-
-    int CellCount() const { return nx * ny + 1; }
-    int Outside() const { return nx * ny; }
-    int Cell(double x, double y) const {
-        constexpr double kTol = 1e-6;
-        double fx = (x - x0) / (x1 - x0), fy = (y - y0) / (y1 - y0);
-        if (!(fx >= -kTol && fx <= 1 + kTol && fy >= -kTol && fy <= 1 + kTol)) return Outside();
-        int ix = std::clamp(static_cast<int>(std::floor(fx * nx)), 0, nx - 1);
-        int iy = std::clamp(static_cast<int>(std::floor(fy * ny)), 0, ny - 1);
-        return iy * nx + ix;
-    }
-};
-
-// Integrates f over [x0, x1] x [y0, y1] with 2 x 2 panels of 5 x 5-point Gauss-Legendre:
-// exact for the polynomial densities under test and never evaluated on a cell's edge,
-// where a density may jump.
-double IntegrateRect(const std::function<double(double, double)>& f, double x0, double x1,
-                     double y0, double y1) {
-    static const double kNodes[5] = {-0.9061798459386640, -0.5384693101056831, 0.0,
-                                     0.5384693101056831, 0.9061798459386640};
-    static const double kWeights[5] = {0.2369268850561891, 0.4786286704993665, 0.5688888888888889,
-                                       0.4786286704993665, 0.2369268850561891};
-    double sum = 0;
-    for (int px = 0; px < 2; ++px) {
-        double ax = x0 + (x1 - x0) * px / 2, bx = x0 + (x1 - x0) * (px + 1) / 2;
-        for (int py = 0; py < 2; ++py) {
-            double ay = y0 + (y1 - y0) * py / 2, by = y0 + (y1 - y0) * (py + 1) / 2;
-            for (int i = 0; i < 5; ++i)
-                for (int j = 0; j < 5; ++j) {
-                    double x = 0.5 * (ax + bx) + 0.5 * (bx - ax) * kNodes[i];
-                    double y = 0.5 * (ay + by) + 0.5 * (by - ay) * kNodes[j];
-                    sum += kWeights[i] * kWeights[j] * f(x, y) * 0.25 * (bx - ax) * (by - ay);
-                }
-        }
-    }
-    return sum;
-}
-
 // Draws n samples (each mapped to grid parameters by `sample`) and tests them against
 // `density`, the pdf with respect to the grid parameters' area measure.
 ChiSquareResult ChiSquareOnGrid(const Grid& grid,
                                 const std::function<std::pair<double, double>(Vec2)>& sample,
                                 const std::function<double(double, double)>& density, int n,
                                 uint64_t seed) {
-    std::vector<double> observed(grid.CellCount()), expected(grid.CellCount());
+    std::vector<double> observed(grid.CellCount());
     Pcg32 rng(Hash(seed));
     for (int i = 0; i < n; ++i) {
         Vec2 u(rng.NextFloat(), rng.NextFloat());
         auto [x, y] = sample(u);
         observed[grid.Cell(x, y)] += 1;
     }
-    for (int iy = 0; iy < grid.ny; ++iy)
-        for (int ix = 0; ix < grid.nx; ++ix) {
-            double x0 = grid.x0 + (grid.x1 - grid.x0) * ix / grid.nx;
-            double x1 = grid.x0 + (grid.x1 - grid.x0) * (ix + 1) / grid.nx;
-            double y0 = grid.y0 + (grid.y1 - grid.y0) * iy / grid.ny;
-            double y1 = grid.y0 + (grid.y1 - grid.y0) * (iy + 1) / grid.ny;
-            expected[iy * grid.nx + ix] = n * IntegrateRect(density, x0, x1, y0, y1);
-        }
-    return ChiSquareTest(observed, expected);
+    return ChiSquareTest(observed, ExpectedCounts(grid, density, n));
 }
 
 // Directions are binned in (z, phi), where the solid angle is dz dphi, so that the
