@@ -178,6 +178,29 @@ TEST(RenderPlanStages, MalformedResultsAreRefused) {
     EXPECT_THROW(MergeStageResults(plan, 0, "", {"x"}), std::invalid_argument);
 }
 
+TEST(RenderPlanStages, ATileResultMustCoverExactlyItsTileAndApron) {
+    RenderSettings s;
+    s.tile_size = 16;
+    s.filter.type = FilterType::kGaussian;  // radius 1.5: an apron of 1 pixel
+    RenderPlan plan = MakeRenderPlan({64, 64}, s);
+    const int render = plan.RenderStageIndex();
+    const int task = 5;  // an inner tile: [16, 32) x [16, 32)
+    auto result = [&](PixelBounds region) {
+        size_t n = size_t(region.Width()) * region.Height() * TileFilm::kChannels;
+        return EncodeTileResult(TileResult{task, region, std::vector<float>(n, 0.5f)});
+    };
+    EXPECT_EQ(plan.tile_regions[task], (PixelBounds{{15, 15}, {33, 33}}));
+    EXPECT_NO_THROW(CheckTaskResult(plan, render, task, result(plan.tile_regions[task])));
+    // A result that would overwrite the whole frame, or only the tile without its apron.
+    EXPECT_THROW(CheckTaskResult(plan, render, task, result(PixelBounds{{0, 0}, {64, 64}})),
+                 std::invalid_argument);
+    EXPECT_THROW(CheckTaskResult(plan, render, task, result(plan.tiles[task])),
+                 std::invalid_argument);
+    FrameAssembler assembler(plan);
+    EXPECT_THROW(assembler.Add(DecodeTileResult(result(PixelBounds{{0, 0}, {64, 64}}))),
+                 std::invalid_argument);
+}
+
 TEST(PhotonMapping, CornellBoxMatchesPathTracedReference) {
     LocalRenderStats stats;
     // 16 camera samples of 8 gather rays: the few-sample mean of light sampling is skewed

@@ -35,15 +35,21 @@ std::vector<PixelBounds> MakeTiles(Vec2i resolution, int tile_size) {
     return tiles;
 }
 
-TileFilm::TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter)
-    : tile_(tile), filter_(&filter), radius_(filter.Radius()) {
+PixelBounds TileRegion(const PixelBounds& tile, Vec2i resolution, float filter_radius) {
     // A sample inside pixel x reaches centres up to r away, i.e. pixels up to
     // ceil(r - 0.5) beyond its own.
-    int apron = std::max(0, static_cast<int>(std::ceil(radius_ - 0.5f)));
-    region_.lo = {std::max(0, tile.lo.x - apron), std::max(0, tile.lo.y - apron)};
-    region_.hi = {std::min(resolution.x, tile.hi.x + apron),
-                  std::min(resolution.y, tile.hi.y + apron)};
-    if (region_.Empty()) region_.hi = region_.lo;
+    int apron = std::max(0, static_cast<int>(std::ceil(filter_radius - 0.5f)));
+    PixelBounds region;
+    region.lo = {std::max(0, tile.lo.x - apron), std::max(0, tile.lo.y - apron)};
+    region.hi = {std::min(resolution.x, tile.hi.x + apron),
+                 std::min(resolution.y, tile.hi.y + apron)};
+    if (region.Empty()) region.hi = region.lo;
+    return region;
+}
+
+TileFilm::TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter)
+    : tile_(tile), filter_(&filter), radius_(filter.Radius()) {
+    region_ = TileRegion(tile, resolution, radius_);
     size_t size = static_cast<size_t>(region_.Width()) * region_.Height() * kChannels;
     data_.assign(size, 0.0f);
     sums_.assign(size, 0.0);

@@ -34,6 +34,8 @@ class Filter {
 };
 
 std::unique_ptr<Filter> MakeFilter(const FilterSettings& settings);
+// The radius MakeFilter(settings) would have, without making the filter.
+float FilterRadius(const FilterSettings& settings);
 
 // What the integrator returns for one camera sample.
 struct SampleValue {
@@ -54,6 +56,10 @@ struct PixelBounds {
 
 // Splits a width x height image into tiles of tile_size, row by row (the fixed order).
 std::vector<PixelBounds> MakeTiles(Vec2i resolution, int tile_size);
+
+// The pixels a tile's samples reach: the tile grown by the filter's apron (samples reach
+// pixel centres up to the filter radius away), clipped to the image.
+PixelBounds TileRegion(const PixelBounds& tile, Vec2i resolution, float filter_radius);
 
 class SeparableFilter;  // film/filter.h
 

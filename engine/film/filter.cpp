@@ -53,4 +53,6 @@ std::unique_ptr<Filter> MakeFilter(const FilterSettings& settings) {
     throw std::invalid_argument("unknown filter type");
 }
 
+float FilterRadius(const FilterSettings& settings) { return MakeFilter(settings)->Radius(); }
+
 }  // namespace tessera

@@ -33,6 +33,9 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     plan.frame = settings.frame;
     plan.resolution = resolution;
     plan.tiles = MakeTiles(resolution, settings.tile_size);
+    const float filter_radius = FilterRadius(settings.filter);
+    for (const PixelBounds& tile : plan.tiles)
+        plan.tile_regions.push_back(TileRegion(tile, resolution, filter_radius));
     const int tiles = static_cast<int>(plan.tiles.size());
     std::vector<int> render_reads;
     if (UsesPhotonMaps(settings)) {
@@ -158,14 +161,9 @@ void FrameAssembler::Add(TileResult r) {
         throw std::invalid_argument(fmt::format("tile result {} is out of range", r.task_index));
     if (present_[r.task_index])
         throw std::invalid_argument(fmt::format("tile result {} arrived twice", r.task_index));
-    const PixelBounds& tile = plan_.tiles[r.task_index];
-    const PixelBounds& g = r.region;
-    bool covers = g.lo.x <= tile.lo.x && g.lo.y <= tile.lo.y && g.hi.x >= tile.hi.x &&
-                  g.hi.y >= tile.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
-                  g.hi.x <= plan_.resolution.x && g.hi.y <= plan_.resolution.y;
-    if (!covers)
+    if (r.region != plan_.tile_regions[r.task_index])
         throw std::invalid_argument(
-            fmt::format("tile result {} does not cover its tile inside the image", r.task_index));
+            fmt::format("tile result {} is not its planned region", r.task_index));
     present_[r.task_index] = true;
     results_[r.task_index] = std::move(r);
     ++received_;

@@ -55,6 +55,9 @@ struct RenderPlan {
     int frame = 0;
     Vec2i resolution;
     std::vector<PixelBounds> tiles;  // the tile stages' tasks, in index order
+    // The film region each render task's result must cover exactly: its tile and the
+    // filter's apron, clipped to the image.
+    std::vector<PixelBounds> tile_regions;
     std::vector<StagePlan> stages;
     int TotalTasks() const;
     // Tasks of the stages before `stage`: a task's position among the frame's tasks is
@@ -86,7 +89,7 @@ class FrameAssembler {
   public:
     explicit FrameAssembler(const RenderPlan& plan);
     // Throws std::invalid_argument for an index out of range, a duplicate, or a region
-    // that is not the planned tile's.
+    // that is not the planned tile's region (tile and apron).
     void Add(TileResult result);
     bool Complete() const { return received_ == static_cast<int>(results_.size()); }
     int Received() const { return received_; }

@@ -97,15 +97,13 @@ void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const st
                 if (r.task_index != task_index)
                     throw std::invalid_argument(
                         fmt::format("the result is tile {}, not {}", r.task_index, task_index));
-                const PixelBounds& tile = plan.tiles[task_index];
-                const PixelBounds& g = r.region;
-                bool covers = g.lo.x <= tile.lo.x && g.lo.y <= tile.lo.y && g.hi.x >= tile.hi.x &&
-                              g.hi.y >= tile.hi.y && g.lo.x >= 0 && g.lo.y >= 0 &&
-                              g.hi.x <= plan.resolution.x && g.hi.y <= plan.resolution.y;
-                if (!covers)
+                const PixelBounds& want = plan.tile_regions[task_index];
+                if (r.region != want)
                     throw std::invalid_argument(fmt::format(
-                        "the result of tile {} does not cover its tile inside the image",
-                        task_index));
+                        "the result of tile {} covers pixels [{}, {}) x [{}, {}), not its "
+                        "tile and apron [{}, {}) x [{}, {})",
+                        task_index, r.region.lo.x, r.region.hi.x, r.region.lo.y, r.region.hi.y,
+                        want.lo.x, want.hi.x, want.lo.y, want.hi.y));
                 return;
             }
         }
