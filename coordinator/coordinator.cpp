@@ -77,7 +77,35 @@ Coordinator::~Coordinator() {
     scheduler_.SetListener(nullptr);
 }
 
+namespace {
+
+// Frames are written to a temporary file beside their final name, then renamed: a crash
+// in between leaves "<name>.tmp-<pid>". Only this coordinator writes here (it holds the
+// state lock), so any such file is left over and goes before frames are written again.
+void RemoveTemporaryFrameFiles(const std::string& output_dir) {
+    std::error_code ec;
+    int removed = 0;
+    for (auto it = fs::recursive_directory_iterator(output_dir, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+        if (it.depth() > 1) {
+            it.disable_recursion_pending();
+            continue;
+        }
+        const std::string name = it->path().filename().string();
+        std::error_code file_ec;
+        if (name.find(".tmp-") != std::string::npos && it->is_regular_file(file_ec) &&
+            fs::remove(it->path(), file_ec))
+            ++removed;
+    }
+    if (removed > 0)
+        spdlog::info("removed {} temporary frame file(s) left by an interrupted write in {}",
+                     removed, output_dir);
+}
+
+}  // namespace
+
 void Coordinator::Start() {
+    RemoveTemporaryFrameFiles(options_.output_dir);
     dispatcher_.Start();
     watches_.Start();
     frame_work_.Start();

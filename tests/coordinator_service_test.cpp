@@ -508,6 +508,18 @@ TEST_F(CoordinatorTest, RestartWritesFramesWhoseTasksWereAllDone) {
     ExpectSameAsLocal((dir_ / "out" / job / "crash.0000.exr").string(), 0);
 }
 
+TEST_F(CoordinatorTest, TemporaryFrameFilesOfACrashedWriteAreRemovedAtStart) {
+    const fs::path job_dir = dir_ / "out" / "job-7";
+    fs::create_directories(job_dir);
+    std::ofstream(job_dir / "shot.0003.png.tmp-4242") << "half a PNG";
+    std::ofstream(job_dir / "shot.0003.exr.tmp-4242") << "half an EXR";
+    std::ofstream(job_dir / "shot.0002.exr") << "a finished frame";
+    C();
+    EXPECT_FALSE(fs::exists(job_dir / "shot.0003.png.tmp-4242"));
+    EXPECT_FALSE(fs::exists(job_dir / "shot.0003.exr.tmp-4242"));
+    EXPECT_TRUE(fs::exists(job_dir / "shot.0002.exr"));
+}
+
 TEST_F(CoordinatorTest, ALostTileResultIsRenderedAgain) {
     start_ = false;
     std::string job = C().SubmitJob(SceneSpec());
