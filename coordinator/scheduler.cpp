@@ -182,13 +182,35 @@ WorkerRegistration Scheduler::RegisterWorker(const std::string& name, int thread
     std::lock_guard lock(mu_);
     const int64_t now = clock_.NowMs();
     std::string shown = name.empty() ? "worker" : name;
-    for (const auto& [id, w] : workers_)
-        if (w.name == shown && now - w.last_seen_ms < options_.lease_ms)
+    // A worker that registers under the name of one that has gone silent is that worker
+    // restarted: it takes the old id (and keeps any time it was put aside for) rather than
+    // growing the workers table by a row per restart. A name still in live use gets a
+    // new id and a warning.
+    int64_t id = 0;
+    for (const auto& [known_id, w] : workers_) {
+        if (w.name != shown) continue;
+        if (now - w.last_seen_ms < options_.lease_ms) {
             spdlog::warn("worker name '{}' is already in use by {}: names should be unique", shown,
-                         FormatWorkerId(id));
-    const int64_t id = store_.InsertWorker(shown, threads, now);
-    workers_[id] = {shown, threads, now, false};
-    spdlog::info("worker '{}' registered as {} ({} threads)", shown, FormatWorkerId(id), threads);
+                         FormatWorkerId(known_id));
+        } else if (id == 0 || known_id < id) {  // the oldest, whatever the map order
+            id = known_id;
+        }
+    }
+    if (id != 0) {
+        store_.UpdateWorker(id, threads, now);
+        Worker& w = workers_[id];
+        w.threads = threads;
+        w.last_seen_ms = now;
+        w.silent = false;
+        w.failures_in_a_row = 0;
+        spdlog::info("worker '{}' registered again as {} ({} threads)", shown, FormatWorkerId(id),
+                     threads);
+    } else {
+        id = store_.InsertWorker(shown, threads, now);
+        workers_[id] = {shown, threads, now, false};
+        spdlog::info("worker '{}' registered as {} ({} threads)", shown, FormatWorkerId(id),
+                     threads);
+    }
     WorkerRegistration r;
     r.worker_id = FormatWorkerId(id);
     r.lease_duration_ms = static_cast<int>(options_.lease_ms);

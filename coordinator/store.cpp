@@ -279,6 +279,8 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
         "WHERE job_id = ?1 ORDER BY id DESC LIMIT ?2");
     insert_worker_ =
         db_.Prepare("INSERT INTO workers(name, threads, registered_ms) VALUES(?1, ?2, ?3)");
+    update_worker_ =
+        db_.Prepare("UPDATE workers SET threads = ?2, registered_ms = ?3 WHERE id = ?1");
     workers_ = db_.Prepare("SELECT id, name, threads FROM workers ORDER BY id");
 }
 
@@ -652,6 +654,10 @@ std::vector<FailureRow> Store::RecentFailures(int64_t job_id, int limit) {
 int64_t Store::InsertWorker(const std::string& name, int threads, int64_t now_ms) {
     insert_worker_.Bind(name, threads, now_ms).Run();
     return db_.LastInsertRowid();
+}
+
+void Store::UpdateWorker(int64_t id, int threads, int64_t now_ms) {
+    update_worker_.Bind(id, threads, now_ms).Run();
 }
 
 std::vector<WorkerRow> Store::Workers() {

@@ -225,6 +225,8 @@ class Store {
     std::vector<FailureRow> RecentFailures(int64_t job_id, int limit);
 
     int64_t InsertWorker(const std::string& name, int threads, int64_t now_ms);
+    // A worker registering again under a known id (a restarted process of the same name).
+    void UpdateWorker(int64_t id, int threads, int64_t now_ms);
     std::vector<WorkerRow> Workers();
 
   private:
@@ -246,7 +248,7 @@ class Store {
     SqliteStatement next_pending_, next_pending_avoiding_, get_task_, lease_task_, complete_task_,
         requeue_task_, release_task_, requeue_done_, uncount_stage_done_, uncount_frame_done_,
         uncount_job_done_, drop_tasks_, leased_tasks_, stage_results_;
-    SqliteStatement insert_failure_, recent_failures_, insert_worker_, workers_;
+    SqliteStatement insert_failure_, recent_failures_, insert_worker_, update_worker_, workers_;
 };
 
 }  // namespace tessera

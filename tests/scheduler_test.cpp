@@ -145,6 +145,29 @@ TEST_F(SchedulerTest, RegisterReturnsIdsAndTimings) {
                  "control character");
 }
 
+TEST_F(SchedulerTest, ARestartedWorkerTakesBackItsIdAndTheTableDoesNotGrow) {
+    const std::string first = S().RegisterWorker("render-1", 4).worker_id;
+    // A second live process of the same name gets its own id.
+    const std::string twin = S().RegisterWorker("render-1", 4).worker_id;
+    EXPECT_NE(twin, first);
+    // Both go silent; the worker restarts many times.
+    clock_.now += 5000;
+    const std::string again = S().RegisterWorker("render-1", 8).worker_id;
+    EXPECT_EQ(again, first);
+    for (int i = 0; i < 10; ++i) {
+        clock_.now += 5000;
+        EXPECT_EQ(S().RegisterWorker("render-1", 8).worker_id, first);
+    }
+    // Also across a coordinator restart, and the table holds the two rows only.
+    Open();
+    clock_.now += 5000;
+    EXPECT_EQ(S().RegisterWorker("render-1", 8).worker_id, first);
+    Store store(DbPath());
+    EXPECT_EQ(store.Workers().size(), 2u);
+    // The reused id works like a fresh one.
+    EXPECT_NO_THROW(S().Heartbeat(first, 0, 0, ""));
+}
+
 TEST_F(SchedulerTest, LeaseCarriesTaskSpecAndDeadline) {
     std::string w = S().RegisterWorker("alpha", 1).worker_id;
     EXPECT_FALSE(S().TryLease(w).has_value());
