@@ -31,16 +31,7 @@ bool ParseFrames(const std::string& text, int* start, int* end) {
 
 }  // namespace
 
-void JobOptions::AddTo(CLI::App& cmd) {
-    cmd.add_option("--frames", frames, "Frame range A-B (inclusive) or one frame A")
-        ->check(
-            [](const std::string& text) {
-                int a, b;
-                return ParseFrames(text, &a, &b) ? std::string()
-                                                 : "expected A-B with 0 <= A <= B, or A";
-            },
-            "A-B")
-        ->capture_default_str();
+void RenderFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
     cmd.add_option("--integrator", integrator,
                    "Integrator: path, direct, photon (photon mapping with final gathering) or "
@@ -79,14 +70,9 @@ void JobOptions::AddTo(CLI::App& cmd) {
         ->check(CLI::Range(1, 16384));
     cmd.add_option("--height", height, "Image height (overrides the scene)")
         ->check(CLI::Range(1, 16384));
-    cmd.add_option("--priority", priority, "Job priority: higher runs first")
-        ->capture_default_str();
-    cmd.add_option("--name", name,
-                   "Output file stem [A-Za-z0-9._-]+ (default: the scene file's stem, or its "
-                   "folder's name for scene.json)");
 }
 
-v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) const {
+RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     RenderOverrides o;
     if (cmd.count("--spp")) o.spp = spp;
     if (cmd.count("--max-depth")) o.max_depth = max_depth;
@@ -106,7 +92,29 @@ v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) cons
     if (cmd.count("--ic-passes")) o.ic_passes = ic_passes;
     if (cmd.count("--no-gradients")) o.ic_gradients = false;
     if (cmd.count("--debug")) o.debug = ParseDebugView(debug).value_or(DebugView::kNone);
+    return o;
+}
 
+void JobOptions::AddTo(CLI::App& cmd) {
+    cmd.add_option("--frames", frames, "Frame range A-B (inclusive) or one frame A")
+        ->check(
+            [](const std::string& text) {
+                int a, b;
+                return ParseFrames(text, &a, &b) ? std::string()
+                                                 : "expected A-B with 0 <= A <= B, or A";
+            },
+            "A-B")
+        ->capture_default_str();
+    render.AddTo(cmd);
+    cmd.add_option("--priority", priority, "Job priority: higher runs first")
+        ->capture_default_str();
+    cmd.add_option("--name", name,
+                   "Output file stem [A-Za-z0-9._-]+ (default: the scene file's stem, or its "
+                   "folder's name for scene.json)");
+}
+
+v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) const {
+    const RenderOverrides o = render.Overrides(cmd);
     v1::JobSpec spec;
     spec.set_name(name.empty() ? DefaultJobName(scene) : name);
     *spec.mutable_options() = ToProto(o);

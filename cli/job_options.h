@@ -6,14 +6,13 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
+#include "plan/render_settings.h"
 #include "tessera/v1/tessera.pb.h"
 
 namespace tessera {
 
-struct JobOptions {
-    std::string name;
-    std::string frames = "0-0";
-    int priority = 0;
+// The render options every command that renders takes (`render`, `submit`, `farm`).
+struct RenderFlags {
     // CLI11 fills plain values; only the given ones become render overrides.
     int spp = 0, max_depth = 0, tile_size = 0, width = 0, height = 0;
     uint64_t seed = 0;
@@ -22,6 +21,17 @@ struct JobOptions {
     int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
     float ic_accuracy = 0;
     std::string debug;
+
+    void AddTo(CLI::App& cmd);
+    // The options `cmd` was given.
+    RenderOverrides Overrides(const CLI::App& cmd) const;
+};
+
+struct JobOptions {
+    std::string name;
+    std::string frames = "0-0";
+    int priority = 0;
+    RenderFlags render;
 
     void AddTo(CLI::App& cmd);
     // The job's spec, without its bundle (scene path and files): what `cmd` was given.

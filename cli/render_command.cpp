@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "integrator/integrator.h"
 #include "io/image_io.h"
+#include "job_options.h"
 #include "plan/local_runner.h"
 #include "progress.h"
 #include "scene/scene_loader.h"
@@ -25,16 +26,8 @@ struct RenderOptions {
     std::string output;
     int threads = 0;
     bool quiet = false;
-    std::string sampler;
-    RenderOverrides overrides;
-    // CLI11 fills plain values; they move into `overrides` only when given.
-    int spp = 0, max_depth = 0, tile_size = 0, frame = 0, width = 0, height = 0;
-    uint64_t seed = 0;
-    std::string integrator;
-    bool irradiance_cache = false, no_gradients = false;
-    int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
-    float ic_accuracy = 0;
-    std::string debug;
+    RenderFlags render;
+    int frame = 0;
 };
 
 namespace fs = std::filesystem;
@@ -77,30 +70,9 @@ void CheckOutputs(const OutputFiles& files) {
 void RunRender(RenderOptions& o, CLI::App& cmd) {
     const OutputFiles files = PlanOutputs(o.output);
     CheckOutputs(files);
-    if (cmd.count("--spp")) o.overrides.spp = o.spp;
-    if (cmd.count("--max-depth")) o.overrides.max_depth = o.max_depth;
-    if (cmd.count("--tile-size")) o.overrides.tile_size = o.tile_size;
-    if (cmd.count("--frame")) o.overrides.frame = o.frame;
-    if (cmd.count("--width")) o.overrides.width = o.width;
-    if (cmd.count("--height")) o.overrides.height = o.height;
-    if (cmd.count("--seed")) o.overrides.seed = o.seed;
-    if (cmd.count("--integrator")) o.overrides.integrator = o.integrator;
-    if (cmd.count("--sampler"))
-        o.overrides.sampler =
-            o.sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
-
-    if (cmd.count("--irradiance-cache")) o.overrides.irradiance_cache = true;
-    if (cmd.count("--photons")) o.overrides.photons_global = o.photons;
-    if (cmd.count("--caustic-photons")) o.overrides.photons_caustic = o.caustic_photons;
-    if (cmd.count("--photon-batches")) o.overrides.photon_batches = o.photon_batches;
-    if (cmd.count("--ic-accuracy")) o.overrides.ic_accuracy = o.ic_accuracy;
-    if (cmd.count("--ic-samples")) o.overrides.ic_samples = o.ic_samples;
-    if (cmd.count("--ic-passes")) o.overrides.ic_passes = o.ic_passes;
-    if (cmd.count("--no-gradients")) o.overrides.ic_gradients = false;
-    if (cmd.count("--debug")) {
-        o.overrides.debug = ParseDebugView(o.debug).value_or(DebugView::kNone);
-    }
-    LoadedScene loaded = LoadSceneFile(o.scene, o.overrides);
+    RenderOverrides overrides = o.render.Overrides(cmd);
+    if (cmd.count("--frame")) overrides.frame = o.frame;
+    LoadedScene loaded = LoadSceneFile(o.scene, overrides);
     const RenderSettings& s = loaded.settings;
     Vec2i res = loaded.scene->GetCamera().Resolution();
     spdlog::info("{}: {}x{}, {} spp, integrator {}, {} lights, {} triangles", o.scene, res.x, res.y,
@@ -164,47 +136,10 @@ void AddRenderCommand(CLI::App& app) {
                     "it), or .png, .jpg, .jpeg, .tif, .tiff, .hdr (the full EXR is written "
                     "beside it, same stem)")
         ->required();
-    cmd->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::PositiveNumber);
-    cmd->add_option("--integrator", o->integrator,
-                    "Integrator: path, direct, photon (photon mapping with final gathering) or "
-                    "irradiance-cache (path-traced direct light, cached indirect light)")
-        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache"}));
-    cmd->add_flag("--irradiance-cache", o->irradiance_cache,
-                  "photon: put the final gather behind an irradiance cache");
-    cmd->add_option("--photons", o->photons, "photon: photons stored in the global map")
-        ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--caustic-photons", o->caustic_photons,
-                    "photon: photons stored in the caustic map")
-        ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--photon-batches", o->photon_batches, "photon: photon-shooting tasks")
-        ->check(CLI::Range(1, 4096));
-    cmd->add_option("--ic-accuracy", o->ic_accuracy,
-                    "Irradiance cache: Ward's a (smaller: more records, less error)")
-        ->check(CLI::PositiveNumber);
-    cmd->add_option("--ic-samples", o->ic_samples, "Irradiance cache: hemisphere rays per record")
-        ->check(CLI::Range(4, 1 << 20));
-    cmd->add_option("--ic-passes", o->ic_passes,
-                    "Irradiance cache: coarse-to-fine passes before rendering")
-        ->check(CLI::Range(0, 8));
-    cmd->add_flag("--no-gradients", o->no_gradients,
-                  "Irradiance cache: interpolate without the irradiance gradients");
-    cmd->add_option("--debug", o->debug,
-                    "Debug image: photons (the photon maps drawn), records (cache record "
-                    "positions), indirect (indirect light only)")
-        ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
-    cmd->add_option("--sampler", o->sampler, "Pixel sampler: stratified or independent")
-        ->check(CLI::IsMember({"stratified", "independent"}));
-    cmd->add_option("--max-depth", o->max_depth, "Maximum path length in bounces")
-        ->check(CLI::NonNegativeNumber);
+    o->render.AddTo(*cmd);
     cmd->add_option("--threads", o->threads, "Render threads (0: all cores)")
         ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--seed", o->seed, "Seed of every random stream");
     cmd->add_option("--frame", o->frame, "Frame number (animation)")->check(CLI::NonNegativeNumber);
-    cmd->add_option("--tile-size", o->tile_size, "Tile edge in pixels")->check(CLI::PositiveNumber);
-    cmd->add_option("--width", o->width, "Image width (overrides the scene)")
-        ->check(CLI::Range(1, 16384));
-    cmd->add_option("--height", o->height, "Image height (overrides the scene)")
-        ->check(CLI::Range(1, 16384));
     cmd->add_flag("-q,--quiet", o->quiet, "No progress display");
     cmd->callback([o, cmd] { RunRender(*o, *cmd); });
 }
