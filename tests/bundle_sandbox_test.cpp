@@ -1,10 +1,13 @@
 // Scenes loaded from a job's bundle stay inside it (SceneLoadOptions::sandboxed): no
 // absolute or ".." references, no symbolic links, only regular files under a size
 // limit, and messages that name files relative to the bundle, never by their path on
-// the machine. And the job planner range-checks every number of a spec before using it.
+// the machine. Every file is read whole, under the limit, before a decoder sees it, and
+// images are checked against a pixel limit and a time limit before and while decoding.
+// And the job planner range-checks every number of a spec before using it.
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -19,6 +22,8 @@
 #include "blob_store.h"
 #include "core/error.h"
 #include "errors.h"
+#include "io/file_bytes.h"
+#include "io/image_io.h"
 #include "job_planner.h"
 #include "scene/scene_loader.h"
 #include "sha256.h"
@@ -190,6 +195,236 @@ TEST_F(SandboxTest, ReaderErrorsNameFilesInTheBundle) {
     m = LoadError(SceneWith("bad.ppm", "m.obj"));
     EXPECT_NE(m.find("bad.ppm"), std::string::npos) << m;
     EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+}
+
+// --- decoders read bytes under limits ---------------------------------------------------
+
+// The big-endian bytes of `v`.
+std::string BigEndian32(uint32_t v) {
+    return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
+}
+
+// CRC-32 as PNG chunks use it (ISO 3309).
+uint32_t Crc32(const std::string& bytes) {
+    uint32_t crc = 0xffffffffu;
+    for (unsigned char b : bytes) {
+        crc ^= b;
+        for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    return crc ^ 0xffffffffu;
+}
+
+std::string PngChunk(const std::string& type, const std::string& data) {
+    return BigEndian32(uint32_t(data.size())) + type + data + BigEndian32(Crc32(type + data));
+}
+
+// A valid PNG header that declares a width x height RGB image, with almost no pixel data:
+// a decompression bomb's shape in a few dozen bytes.
+std::string PngDeclaring(uint32_t width, uint32_t height) {
+    const std::string ihdr =
+        BigEndian32(width) + BigEndian32(height) + std::string("\x08\x02\x00\x00\x00", 5);
+    const std::string empty_zlib("\x78\x9c\x03\x00\x00\x00\x00\x01", 8);
+    return std::string("\x89PNG\r\n\x1a\n", 8) + PngChunk("IHDR", ihdr) +
+           PngChunk("IDAT", empty_zlib) + PngChunk("IEND", "");
+}
+
+Image Gradient(int width, int height) {
+    Image image;
+    image.width = width;
+    image.height = height;
+    image.channels = {"R", "G", "B"};
+    image.pixels.resize(size_t(width) * height * 3);
+    for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = float(i % 97) / 97.0f;
+    return image;
+}
+
+std::string FileText(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// DecodeImage's message for `bytes` named `name`, or "" if it decoded.
+std::string DecodeError(const std::string& bytes, const std::string& name,
+                        const ImageDecodeLimits& limits = {}) {
+    std::string message;
+    Bounded([&] {
+        try {
+            DecodeImage(bytes, name, limits);
+        } catch (const std::runtime_error& e) {
+            message = e.what();
+        }
+    });
+    return message;
+}
+
+TEST_F(SandboxTest, DevicesAreNeverRead) {
+    // /dev/zero reads forever: refused from its descriptor's type, before any read.
+    std::string m;
+    Bounded([&] {
+        try {
+            ReadFileBytes("/dev/zero", 1 << 20, "zero.png");
+        } catch (const std::runtime_error& e) {
+            m = e.what();
+        }
+    });
+    EXPECT_NE(m.find("'zero.png' is not a regular file"), std::string::npos) << m;
+
+    // The same device inside a bundle, as a device node and through a link.
+    ASSERT_EQ(::mknod((bundle_ / "zero.png").c_str(), S_IFCHR | 0600, ::makedev(1, 5)), 0);
+    fs::create_symlink("/dev/zero", bundle_ / "link.png");
+    ExpectTextureRefused("zero.png", "not a regular file");
+    ExpectTextureRefused("link.png", "symbolic link");
+    for (const char* name : {"zero.png", "link.png"}) {
+        m.clear();
+        Bounded([&] {
+            try {
+                ReadFileBelow(bundle_.string(), name, 1 << 20);
+            } catch (const std::runtime_error& e) {
+                m = e.what();
+            }
+        });
+        EXPECT_NE(m.find(std::string("'") + name + "'"), std::string::npos) << m;
+        EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+    }
+
+    // A scene outside any bundle (the CLI's) refuses the device as well.
+    Write(dir_ / "local.json", SceneWith("/dev/zero", (bundle_ / "m.obj").string()));
+    m.clear();
+    Bounded([&] {
+        try {
+            LoadSceneFile((dir_ / "local.json").string());
+        } catch (const SceneError& e) {
+            m = e.what();
+        }
+    });
+    EXPECT_NE(m.find("not a regular file"), std::string::npos) << m;
+}
+
+TEST_F(SandboxTest, FilesAreReadUnderTheLimitFromTheBundleOnly) {
+    Write(bundle_ / "sub" / "m.obj", kTriangleObj);
+    EXPECT_EQ(ReadFileBelow(bundle_.string(), "sub/m.obj", 1 << 20), kTriangleObj);
+    std::string m;
+    try {
+        ReadFileBelow(bundle_.string(), "sub/m.obj", 8);
+    } catch (const std::runtime_error& e) {
+        m = e.what();
+    }
+    EXPECT_NE(m.find("'sub/m.obj' is " + std::to_string(std::string(kTriangleObj).size()) +
+                     " bytes, over the limit of 8"),
+              std::string::npos)
+        << m;
+    fs::create_directory_symlink(dir_, bundle_ / "up");
+    for (const char* rel : {"up/outside.obj", "../outside.obj", "missing.obj"}) {
+        m.clear();
+        try {
+            ReadFileBelow(bundle_.string(), rel, 1 << 20);
+        } catch (const std::runtime_error& e) {
+            m = e.what();
+        }
+        EXPECT_NE(m.find(std::string("'") + rel + "'"), std::string::npos) << m;
+        EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+    }
+}
+
+TEST_F(SandboxTest, AMeshOverTheLimitIsRefused) {
+    std::string big = kTriangleObj;
+    while (big.size() <= 4096) big += "v 0 0 0\n";
+    Write(bundle_ / "big.obj", big);
+    std::string m = LoadError(SceneWith("t.ppm", "big.obj"), 4096);
+    EXPECT_NE(m.find("'big.obj'"), std::string::npos) << m;
+    EXPECT_NE(m.find("/shapes/0/file"), std::string::npos) << m;
+    EXPECT_NE(m.find("over the limit of 4096"), std::string::npos) << m;
+    EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+}
+
+TEST_F(SandboxTest, HugeDeclaredImagesAreRefusedBeforeDecoding) {
+    const std::string bomb = PngDeclaring(100000, 100000);
+    ASSERT_LT(bomb.size(), 100u);
+    std::string m = DecodeError(bomb, "textures/bomb.png");
+    EXPECT_NE(m.find("textures/bomb.png"), std::string::npos) << m;
+    EXPECT_NE(m.find("100000x100000"), std::string::npos) << m;
+    EXPECT_NE(m.find("over the limit"), std::string::npos) << m;
+
+    // Through a scene: named as in the bundle, at the texture's place.
+    Write(bundle_ / "bomb.png", bomb);
+    m = LoadError(SceneWith("bomb.png", "m.obj"));
+    EXPECT_NE(m.find("'bomb.png'"), std::string::npos) << m;
+    EXPECT_NE(m.find("/textures/t/file"), std::string::npos) << m;
+    EXPECT_NE(m.find("over the limit"), std::string::npos) << m;
+    EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+
+    // An EXR whose data window declares 100000 x 100000 pixels.
+    WriteExr((dir_ / "small.exr").string(), Gradient(4, 4), {});
+    std::string exr = FileText(dir_ / "small.exr");
+    const std::string key("dataWindow\0box2i\0", 17);
+    const size_t at = exr.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const int32_t window[4] = {0, 0, 99999, 99999};
+    exr.replace(at + key.size() + 4, 16, reinterpret_cast<const char*>(window), 16);
+    // OpenEXR would size its table of chunk offsets from the header on opening: the
+    // header is checked first, so this one never reaches it.
+    m = DecodeError(exr, "bomb.exr");
+    EXPECT_NE(m.find("bomb.exr: bad EXR header: a data window of 100000x100000"),
+              std::string::npos)
+        << m;
+    // A well-formed EXR is checked against the caller's limit the same way.
+    WriteExr((dir_ / "g.exr").string(), Gradient(64, 64), {});
+    ImageDecodeLimits small;
+    small.max_pixels = 1000;
+    m = DecodeError(FileText(dir_ / "g.exr"), "g.exr", small);
+    EXPECT_NE(m.find("g.exr"), std::string::npos) << m;
+    EXPECT_NE(m.find("a data window of 64x64 pixels, over the limit of 1000"), std::string::npos)
+        << m;
+
+    // The limit is the caller's: a small image passes a small limit, a larger one not.
+    WritePngPreview((dir_ / "g.png").string(), Gradient(8, 8));
+    ImageDecodeLimits limits;
+    limits.max_pixels = 64;
+    EXPECT_EQ(DecodeError(FileText(dir_ / "g.png"), "g.png", limits), "");
+    limits.max_pixels = 63;
+    EXPECT_NE(DecodeError(FileText(dir_ / "g.png"), "g.png", limits).find("over the limit"),
+              std::string::npos);
+}
+
+TEST_F(SandboxTest, TruncatedImagesFailWithTheirName) {
+    WritePngPreview((dir_ / "g.png").string(), Gradient(64, 64));
+    WriteExr((dir_ / "g.exr").string(), Gradient(64, 64), {});
+    for (const char* name : {"g.png", "g.exr"}) {
+        const std::string whole = FileText(dir_ / name);
+        EXPECT_EQ(DecodeError(whole, name), "") << name;
+        for (size_t keep : {whole.size() / 2, size_t(20), size_t(0)}) {
+            std::string m = DecodeError(whole.substr(0, keep), std::string("tex/") + name);
+            EXPECT_NE(m.find(std::string("tex/") + name), std::string::npos)
+                << name << " cut to " << keep << ": " << m;
+        }
+    }
+    Write(bundle_ / "cut.png", FileText(dir_ / "g.png").substr(0, 100));
+    std::string m = LoadError(SceneWith("cut.png", "m.obj"));
+    EXPECT_NE(m.find("cut.png"), std::string::npos) << m;
+    EXPECT_EQ(m.find(dir_.string()), std::string::npos) << m;
+}
+
+TEST_F(SandboxTest, DecodingStopsAtItsTimeLimit) {
+    WriteExr((dir_ / "g.exr").string(), Gradient(64, 64), {});
+    ImageDecodeLimits limits;
+    limits.max_seconds = 0;
+    std::string m = DecodeError(FileText(dir_ / "g.exr"), "g.exr", limits);
+    EXPECT_NE(m.find("g.exr"), std::string::npos) << m;
+    EXPECT_NE(m.find("decoding took longer than 0 s"), std::string::npos) << m;
+}
+
+TEST_F(SandboxTest, ImagesAreDecodedAsTheirExtensionSays) {
+    // Nothing is guessed from the content: an extension no reader knows is refused.
+    std::string m = DecodeError(kTexturePpm, "t.unknown");
+    EXPECT_NE(m.find("t.unknown"), std::string::npos) << m;
+    EXPECT_NE(m.find("no image reader knows the extension '.unknown'"), std::string::npos) << m;
+    // A reader that cannot read from memory is refused rather than given the path.
+    m = DecodeError("not read", "t.sgi");
+    EXPECT_NE(m.find("cannot be read from memory"), std::string::npos) << m;
+    // The texture formats a bundle uses decode from memory.
+    Image image = DecodeImage(kTexturePpm, "t.ppm", {});
+    ASSERT_EQ(image.width, 1);
+    EXPECT_NEAR(image.At(0, 0, image.ChannelIndex("G")), 20.0f / 255.0f, 1e-6f);
 }
 
 // --- the planner ------------------------------------------------------------------------

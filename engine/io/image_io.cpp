@@ -1,13 +1,18 @@
 #include "io/image_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <climits>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <system_error>
 #include <utility>
@@ -119,6 +124,92 @@ uint8_t ToSrgb8(float linear) {
     return static_cast<uint8_t>(std::lround(LinearToSrgb(v) * 255.0f));
 }
 
+// OpenImageIO's name for the reader of files with `path`'s extension, from its own table of
+// extensions, so that no reader guesses the format from the content (which may mean
+// trying every reader on it).
+std::string ReaderForExtension(const std::string& path) {
+    std::string extension = fs::path(path).extension().string();
+    if (!extension.empty()) extension.erase(0, 1);
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (extension.empty()) Fail("cannot read", path, "the file name has no image extension");
+    // "openexr:exr,sxr,mxr;png:png;..."
+    const std::string table = OIIO::get_string_attribute("extension_list");
+    size_t begin = 0;
+    while (begin < table.size()) {
+        size_t end = table.find(';', begin);
+        if (end == std::string::npos) end = table.size();
+        const std::string entry = table.substr(begin, end - begin);
+        begin = end + 1;
+        const size_t colon = entry.find(':');
+        if (colon == std::string::npos) continue;
+        std::string list = "," + entry.substr(colon + 1) + ",";
+        if (list.find("," + extension + ",") != std::string::npos) return entry.substr(0, colon);
+    }
+    Fail("cannot read", path, "no image reader knows the extension '." + extension + "'");
+}
+
+// Stops a decode (OpenImageIO's progress callback: true aborts) once its time is up.
+struct DecodeDeadline {
+    std::chrono::steady_clock::time_point end;
+    bool expired = false;
+
+    static bool Check(void* opaque, float /*portion_done*/) {
+        auto* self = static_cast<DecodeDeadline*>(opaque);
+        if (std::chrono::steady_clock::now() >= self->end) self->expired = true;
+        return self->expired;
+    }
+};
+
+// The first subimage of the open `in`, as float, after checking its declared size.
+Image ReadPixels(OIIO::ImageInput& in, const std::string& name, const ImageDecodeLimits& limits,
+                 ImageMetadata* metadata) {
+    const OIIO::ImageSpec& spec = in.spec();
+    const std::string shape = std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                              (spec.depth > 1 ? "x" + std::to_string(spec.depth) : "") +
+                              " pixels of " + std::to_string(spec.nchannels) + " channels";
+    if (spec.width <= 0 || spec.height <= 0 || spec.depth <= 0 || spec.nchannels <= 0)
+        Fail("cannot read", name, "the image declares " + shape);
+    const uint64_t pixels = static_cast<uint64_t>(spec.width) * static_cast<uint64_t>(spec.height);
+    if (spec.depth != 1 || pixels > limits.max_pixels || spec.nchannels > limits.max_channels)
+        Fail("cannot read", name,
+             "the image declares " + shape + ", over the limit of " +
+                 std::to_string(limits.max_pixels) + " pixels (one layer) of at most " +
+                 std::to_string(limits.max_channels) + " channels");
+    if (pixels * static_cast<uint64_t>(spec.nchannels) * sizeof(float) > limits.max_decoded_bytes)
+        Fail("cannot read", name,
+             "the image declares " + shape + ", over the limit of " +
+                 std::to_string(limits.max_decoded_bytes >> 20) + " MiB decoded");
+    Image image;
+    image.width = spec.width;
+    image.height = spec.height;
+    image.channels.resize(spec.nchannels);
+    for (int c = 0; c < spec.nchannels; ++c) image.channels[c] = spec.channel_name(c);
+    image.pixels.resize(static_cast<size_t>(pixels) * spec.nchannels);
+    DecodeDeadline deadline;
+    const auto budget = std::chrono::duration<double>(limits.max_seconds);
+    deadline.end =
+        budget.count() >= 1e9
+            ? std::chrono::steady_clock::time_point::max()
+            : std::chrono::steady_clock::now() +
+                  std::chrono::duration_cast<std::chrono::steady_clock::duration>(budget);
+    const bool read = in.read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT,
+                                    image.pixels.data(), OIIO::AutoStride, OIIO::AutoStride,
+                                    OIIO::AutoStride, &DecodeDeadline::Check, &deadline);
+    if (deadline.expired) {
+        char seconds[32];
+        std::snprintf(seconds, sizeof(seconds), "%g", limits.max_seconds);
+        Fail("cannot read", name, std::string("decoding took longer than ") + seconds + " s");
+    }
+    if (!read) Fail("cannot read", name, in.geterror());
+    if (metadata != nullptr) {
+        for (const OIIO::ParamValue& p : spec.extra_attribs)
+            if (p.type() == OIIO::TypeDesc::STRING) (*metadata)[p.name().string()] = p.get_string();
+    }
+    in.close();
+    return image;
+}
+
 }  // namespace
 
 void WriteExr(const std::string& path, const Image& image, const ImageMetadata& metadata) {
@@ -188,21 +279,84 @@ void WritePngPreview(const std::string& path, const Image& image) {
 Image ReadImage(const std::string& path, ImageMetadata* metadata) {
     std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
     if (!in) Fail("cannot read", path, OIIO::geterror());
-    const OIIO::ImageSpec& spec = in->spec();
-    Image image;
-    image.width = spec.width;
-    image.height = spec.height;
-    image.channels.resize(spec.nchannels);
-    for (int c = 0; c < spec.nchannels; ++c) image.channels[c] = spec.channel_name(c);
-    image.pixels.resize(static_cast<size_t>(spec.width) * spec.height * spec.nchannels);
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
-        Fail("cannot read", path, in->geterror());
-    if (metadata != nullptr) {
-        for (const OIIO::ParamValue& p : spec.extra_attribs)
-            if (p.type() == OIIO::TypeDesc::STRING) (*metadata)[p.name().string()] = p.get_string();
+    ImageDecodeLimits unlimited;
+    unlimited.max_pixels = UINT64_MAX;
+    unlimited.max_channels = INT_MAX;
+    unlimited.max_decoded_bytes = UINT64_MAX;
+    unlimited.max_seconds = std::numeric_limits<double>::infinity();
+    return ReadPixels(*in, path, unlimited, metadata);
+}
+
+// OpenEXR sizes its tables from the header before any pixel is read: a header of a few
+// hundred bytes can make it allocate gigabytes and spend seconds inside open(). So an EXR
+// header is walked here first, strictly: one part, scan lines or tiles (no deep data),
+// well-formed attributes, and a data window within the pixel limit.
+void CheckExrHeader(std::string_view bytes, const std::string& name,
+                    const ImageDecodeLimits& limits) {
+    auto bad = [&](const std::string& why) { Fail("cannot read", name, "bad EXR header: " + why); };
+    size_t at = 0;
+    auto u32 = [&]() {
+        if (bytes.size() - at < 4) bad("truncated");
+        uint32_t v = 0;
+        for (int i = 0; i < 4; ++i) v |= uint32_t(uint8_t(bytes[at + i])) << (8 * i);
+        at += 4;
+        return v;
+    };
+    auto text = [&](size_t max) {
+        const size_t end = bytes.find('\0', at);
+        if (end == std::string_view::npos || end - at > max) bad("unterminated or long name");
+        std::string_view t = bytes.substr(at, end - at);
+        at = end + 1;
+        return t;
+    };
+    if (u32() != 20000630u) bad("not an OpenEXR file");
+    const uint32_t version = u32();
+    if ((version & 0xff) != 2) bad("version " + std::to_string(version & 0xff));
+    if (version & (0x800 | 0x1000)) bad("deep or multi-part images are not supported");
+    bool channels = false, window = false;
+    for (int count = 0;; ++count) {
+        if (count > 1000) bad("too many attributes");
+        const std::string_view attribute = text(255);
+        if (attribute.empty()) break;
+        const std::string_view type = text(255);
+        if (type.empty()) bad("attribute '" + std::string(attribute) + "' has no type");
+        const uint32_t size = u32();
+        if (size > bytes.size() - at) bad("attribute '" + std::string(attribute) + "' overruns");
+        if (attribute == "channels") {
+            if (type != "chlist" || size > 64 * 1024) bad("bad channel list");
+            channels = true;
+        } else if (attribute == "dataWindow") {
+            if (type != "box2i" || size != 16) bad("bad data window");
+            const size_t start = at;
+            const int64_t x0 = int32_t(u32()), y0 = int32_t(u32());
+            const int64_t x1 = int32_t(u32()), y1 = int32_t(u32());
+            at = start;
+            const int64_t w = x1 - x0 + 1, h = y1 - y0 + 1;
+            if (w <= 0 || h <= 0 || uint64_t(w) * uint64_t(h) > limits.max_pixels)
+                bad("a data window of " + std::to_string(w) + "x" + std::to_string(h) +
+                    " pixels, over the limit of " + std::to_string(limits.max_pixels));
+            window = true;
+        }
+        at += size;
     }
-    in->close();
-    return image;
+    if (!channels || !window) bad("no channel list or data window");
+}
+
+Image DecodeImage(std::string_view bytes, const std::string& name, const ImageDecodeLimits& limits,
+                  ImageMetadata* metadata) {
+    const std::string format = ReaderForExtension(name);
+    if (format == "openexr") CheckExrHeader(bytes, name, limits);
+    std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::create(format);
+    if (!in) Fail("cannot read", name, OIIO::geterror());
+    if (!in->supports("ioproxy"))
+        Fail("cannot read", name,
+             "images in the '" + format + "' format cannot be read from memory; use one of " +
+                 SupportedImageExtensions());
+    OIIO::Filesystem::IOMemReader memory(bytes.data(), bytes.size());
+    if (!in->set_ioproxy(&memory)) Fail("cannot read", name, in->geterror());
+    OIIO::ImageSpec spec;
+    if (!in->open(name, spec)) Fail("cannot read", name, in->geterror());
+    return ReadPixels(*in, name, limits, metadata);
 }
 
 }  // namespace tessera

@@ -2,9 +2,11 @@
 
 // Image files through OpenImageIO. Only this module includes OpenImageIO headers.
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "film/image.h"
 
@@ -37,5 +39,24 @@ void WritePngPreview(const std::string& path, const Image& image);
 // OpenImageIO then lists R G B A first): look channels up with Image::ChannelIndex.
 // *metadata (if given) receives the string attributes of the header.
 Image ReadImage(const std::string& path, ImageMetadata* metadata = nullptr);
+
+// Bounds on decoding an image that someone else supplied (a job's bundle).
+struct ImageDecodeLimits {
+    // The most pixels (width x height x depth) and channels a header may declare; checked
+    // before any pixel is decoded, since a file of a few bytes can declare a huge image.
+    uint64_t max_pixels = uint64_t(1) << 26;
+    int max_channels = 16;
+    // And the most memory the decoded floats may take (pixels x channels x 4 bytes).
+    uint64_t max_decoded_bytes = uint64_t(1) << 30;
+    // Decoding stops with an error once it has taken longer than this.
+    double max_seconds = 30;
+};
+
+// Decodes an image from the bytes of a file already read (io/file_bytes.h), as float
+// like ReadImage. The format is the one `name`'s extension names (nothing is guessed from
+// the content, and no file is opened); formats whose OpenImageIO reader cannot read from
+// memory are refused. Throws std::runtime_error naming the image as `name`.
+Image DecodeImage(std::string_view bytes, const std::string& name, const ImageDecodeLimits& limits,
+                  ImageMetadata* metadata = nullptr);
 
 }  // namespace tessera

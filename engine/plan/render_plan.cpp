@@ -141,7 +141,10 @@ TileResult DecodeTileResult(const std::string& bytes) {
     if (channels != TileFilm::kChannels)
         throw std::runtime_error(
             fmt::format("tile result has {} channels, expected {}", channels, TileFilm::kChannels));
-    if (r.region.Empty() || r.region.Width() > 1 << 16 || r.region.Height() > 1 << 16)
+    // In 64 bits: a forged region's corners may lie 2^32 apart.
+    const int64_t width = int64_t(r.region.hi.x) - r.region.lo.x;
+    const int64_t height = int64_t(r.region.hi.y) - r.region.lo.y;
+    if (width <= 0 || height <= 0 || width > 1 << 16 || height > 1 << 16)
         throw std::runtime_error("tile result has an invalid region");
     size_t count = size_t(r.region.Width()) * r.region.Height() * channels;
     if (bytes.size() - at != count * sizeof(float))

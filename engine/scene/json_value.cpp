@@ -71,6 +71,9 @@ std::string ClosestMatch(const std::string& word, const std::vector<std::string>
     std::string best;
     size_t best_d = limit + 1;
     for (const std::string& c : candidates) {
+        // The distance is at least the difference in length: a long key (a stranger's scene
+        // may hold megabytes of one) is compared at no cost, never through the full table.
+        if (std::max(lw.size(), c.size()) - std::min(lw.size(), c.size()) > limit) continue;
         size_t d = EditDistance(lw, Lowercase(c));
         if (d < best_d && d < c.size()) {
             best = c;

@@ -493,9 +493,12 @@ TriangleMesh LoadPly(const std::string& path, const std::string& data) {
     if (!index_list || !index_list->is_list) fail("face element lacks a 'vertex_indices' list");
 
     TriangleMesh m;
-    m.positions.reserve(vertex->count);
-    if (has_normals) m.normals.reserve(vertex->count);
-    if (has_uvs) m.uvs.reserve(vertex->count);
+    // The header's count is a claim: every vertex takes at least a byte of the body, so
+    // no more than the body's size is reserved (a tiny file cannot claim terabytes).
+    const size_t reserve = std::min(vertex->count, data.size() - std::min(body, data.size()));
+    m.positions.reserve(reserve);
+    if (has_normals) m.normals.reserve(reserve);
+    if (has_uvs) m.uvs.reserve(reserve);
     PlyBodyReader reader(data, body, format);
     std::vector<uint32_t> polygon;
     for (const PlyElement& e : elements) {
@@ -518,6 +521,9 @@ TriangleMesh LoadPly(const std::string& path, const std::string& data) {
                 double n = 0;
                 read(p.count_type, &n);
                 if (n < 0) fail(e.name + " " + std::to_string(i) + " has a negative list count");
+                // An ASCII count may be written as any integral number ("1e30", "inf").
+                if (n > double(UINT32_MAX))
+                    fail(e.name + " " + std::to_string(i) + " has a list count over 2^32 - 1");
                 bool indices = &e == face && &p == index_list;
                 for (size_t k = 0; k < size_t(n); ++k) {
                     read(p.type, &v);
@@ -563,22 +569,32 @@ std::string LowercaseExtension(const std::string& path) {
     return ext;
 }
 
-}  // namespace
-
-TriangleMesh LoadMeshFile(const std::string& path) {
+// `path`'s extension, lowercase, if it names a mesh format.
+std::string CheckMeshExtension(const std::string& path) {
     std::string ext = LowercaseExtension(path);
     if (ext != ".obj" && ext != ".ply") {
         throw std::runtime_error(path + ": unsupported mesh format '" + ext +
                                  "' (expected .obj or .ply)");
     }
+    return ext;
+}
+
+}  // namespace
+
+TriangleMesh LoadMeshFile(const std::string& path) {
+    CheckMeshExtension(path);
     // Read first so that a missing file gives the same error for both formats.
-    std::string data = ReadWholeFile(path);
-    TriangleMesh mesh = ext == ".obj" ? LoadObj(path, data) : LoadPly(path, data);
-    if (mesh.NumTriangles() == 0) throw std::runtime_error(path + ": mesh has no triangles");
+    return ParseMeshData(path, ReadWholeFile(path));
+}
+
+TriangleMesh ParseMeshData(const std::string& name, const std::string& data) {
+    const std::string ext = CheckMeshExtension(name);
+    TriangleMesh mesh = ext == ".obj" ? LoadObj(name, data) : LoadPly(name, data);
+    if (mesh.NumTriangles() == 0) throw std::runtime_error(name + ": mesh has no triangles");
     try {
         mesh.Validate();
     } catch (const std::runtime_error& e) {
-        throw std::runtime_error(path + ": " + e.what());
+        throw std::runtime_error(name + ": " + e.what());
     }
     return mesh;
 }

@@ -36,5 +36,8 @@ TriangleMesh MakeQuad(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
 // Loads an OBJ (tinyobjloader) or PLY file, chosen by extension; all groups merged.
 // Throws std::runtime_error with the path and the problem.
 TriangleMesh LoadMeshFile(const std::string& path);
+// Parses the bytes of an OBJ or PLY file already read, the format chosen by `name`'s
+// extension; messages name the file as `name`. Throws std::runtime_error.
+TriangleMesh ParseMeshData(const std::string& name, const std::string& data);
 
 }  // namespace tessera

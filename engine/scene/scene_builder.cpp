@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <stdexcept>
 
 #include "camera/perspective.h"
 #include "core/error.h"
+#include "io/file_bytes.h"
+#include "io/image_io.h"
 #include "light/lights.h"
+#include "material/image_texture.h"
 #include "material/materials.h"
 #include "scene/mesh.h"
 
@@ -51,15 +55,33 @@ TriangleMesh ShapeMesh(const ShapeRecord& s, const std::map<std::string, Triangl
     throw std::logic_error("spheres have no mesh");
 }
 
+// How messages name the referenced file `resolved`: relative to the bundle when sandboxed.
+std::string ShownName(const std::string& resolved, const SceneRecords& records) {
+    if (records.sandbox_root.empty()) return resolved;
+    return std::filesystem::path(resolved)
+        .lexically_relative(records.sandbox_root)
+        .generic_string();
+}
+
+// The bytes of the referenced file `resolved`, read once under the size limit; in a
+// bundle without following any symbolic link out of it. Decoders parse these bytes and
+// never reopen the path, so that the file checked by the parser is the file decoded.
+std::string ReadReferencedFile(const std::string& resolved, const SceneRecords& records) {
+    const std::string shown = ShownName(resolved, records);
+    if (records.sandbox_root.empty()) return ReadFileBytes(resolved, records.max_file_bytes, shown);
+    return ReadFileBelow(records.sandbox_root, shown, records.max_file_bytes);
+}
+
 // Loads each mesh file once, however many shapes use it.
-void LoadMeshFiles(const std::vector<ShapeRecord>& shapes, const std::string& sandbox_root,
+void LoadMeshFiles(const std::vector<ShapeRecord>& shapes, const SceneRecords& records,
                    std::map<std::string, TriangleMesh>* files) {
     for (const ShapeRecord& s : shapes) {
         if (s.kind != ShapeKind::kMesh || files->count(s.path)) continue;
         try {
-            (*files)[s.path] = LoadMeshFile(s.path);
+            (*files)[s.path] =
+                ParseMeshData(ShownName(s.path, records), ReadReferencedFile(s.path, records));
         } catch (const std::exception& e) {
-            throw SceneError(s.path_where, ReaderMessage(e, sandbox_root));
+            throw SceneError(s.path_where, ReaderMessage(e, records.sandbox_root));
         }
     }
 }
@@ -82,10 +104,22 @@ std::vector<TriangleMesh> MakeMeshes(const std::vector<ShapeRecord>& shapes,
     return out;
 }
 
-std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records,
-                                     const std::string& sandbox_root) {
+// An image texture decoded from the file's bytes within the scene's decoding limits.
+TextureRef LoadImageTexture(const TextureRecord& t, const SceneRecords& records) {
+    const std::string shown = ShownName(t.path, records);
+    try {
+        return std::make_unique<ImageTexture>(
+            DecodeImage(ReadReferencedFile(t.path, records), shown, records.image_limits), t.srgb);
+    } catch (const std::exception& e) {
+        // Says which texture failed even if the reader's own message does not.
+        throw std::runtime_error("cannot load image texture '" + shown + "': " + e.what());
+    }
+}
+
+std::vector<TextureRef> MakeTextures(const SceneRecords& records) {
+    const std::string& sandbox_root = records.sandbox_root;
     std::vector<TextureRef> out;
-    for (const TextureRecord& t : records) {
+    for (const TextureRecord& t : records.textures) {
         switch (t.kind) {
             case TextureKind::kConstant:
                 out.push_back(MakeConstantTexture(t.value));
@@ -95,7 +129,7 @@ std::vector<TextureRef> MakeTextures(const std::vector<TextureRecord>& records,
                 break;
             case TextureKind::kImage:
                 try {
-                    out.push_back(MakeImageTexture(t.path, t.srgb));
+                    out.push_back(LoadImageTexture(t, records));
                 } catch (const std::exception& e) {
                     throw SceneError(t.path_where, ReaderMessage(e, sandbox_root));
                 }
@@ -215,16 +249,15 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
 LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settings) {
     // Everything that reads files or can reject a value, before the Scene exists.
     std::map<std::string, TriangleMesh> files;
-    LoadMeshFiles(records.shapes, records.sandbox_root, &files);
-    for (const ObjectRecord& o : records.objects)
-        LoadMeshFiles(o.shapes, records.sandbox_root, &files);
+    LoadMeshFiles(records.shapes, records, &files);
+    for (const ObjectRecord& o : records.objects) LoadMeshFiles(o.shapes, records, &files);
     std::vector<TriangleMesh> meshes = MakeMeshes(records.shapes, files);
     std::vector<std::vector<TriangleMesh>> object_meshes;
     for (const ObjectRecord& o : records.objects)
         object_meshes.push_back(MakeMeshes(o.shapes, files));
     files.clear();
 
-    std::vector<TextureRef> textures = MakeTextures(records.textures, records.sandbox_root);
+    std::vector<TextureRef> textures = MakeTextures(records);
     std::vector<std::unique_ptr<Material>> materials;
     for (const MaterialRecord& m : records.materials)
         materials.push_back(MakeMaterial(m, textures, records));

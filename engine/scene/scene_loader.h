@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "io/image_io.h"
 #include "plan/render_settings.h"
 #include "scene/scene.h"
 
@@ -20,8 +21,10 @@ struct LoadedScene {
     RenderSettings settings;
 };
 
-// How files are read. The defaults suit a person's own scenes (the CLI): references may
-// be absolute or leave the scene's folder.
+// How files are read. Every file (the scene, meshes, images) is read whole, under the
+// size limit, through one descriptor that must be a regular file; decoders then work on
+// those bytes, never reopening the path. The defaults suit a person's own scenes (the CLI):
+// references may be absolute or leave the scene's folder.
 struct SceneLoadOptions {
     // For scenes from a job's bundle (coordinator, workers), which strangers wrote: every
     // referenced file must be written as a relative path without "..", lie inside
@@ -34,6 +37,9 @@ struct SceneLoadOptions {
     // The largest scene or referenced file read (checked before reading it), so that a
     // huge file cannot stall a load.
     uint64_t max_file_bytes = uint64_t(1) << 30;
+    // Bounds on decoding an image texture: the size its header declares, checked before
+    // decoding, and the time decoding may take.
+    ImageDecodeLimits image_limits;
 };
 
 // Settings come from the file's "render" block with `overrides` applied on top

@@ -4,16 +4,18 @@
 
 #include "scene/scene_records.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 #include "core/error.h"
+#include "io/file_bytes.h"
 #include "scene/json_value.h"
 
 namespace tessera {
@@ -98,6 +100,15 @@ int ParseReference(const JsonValue& v, const std::map<std::string, int>& names,
 // ---------------------------------------------------------------------------------------
 // Context shared by the section parsers
 
+// Whether `p` opens for reading. Without blocking: a file replaced by a FIFO after it was
+// checked must not hang the parser.
+bool CanOpen(const fs::path& p) {
+    const int fd = ::open(p.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) return false;
+    ::close(fd);
+    return true;
+}
+
 // Why the file `rel` (relative to the bundle `root`) may not be read as part of the
 // bundle; empty if it may. Each component is checked without following links, so that
 // a link cannot lead outside the bundle; only regular files (no devices, FIFOs or
@@ -121,7 +132,7 @@ std::string CheckBundleFile(const fs::path& root, const fs::path& rel, uint64_t 
     if (size > max_bytes)
         return "is " + std::to_string(size) + " bytes, over the limit of " +
                std::to_string(max_bytes);
-    if (!std::ifstream(p, std::ios::binary)) return "cannot be read";
+    if (!CanOpen(p)) return "cannot be read";
     return {};
 }
 
@@ -181,8 +192,7 @@ struct Context {
             if (!ec && size > max_file_bytes)
                 v.Fail(at + " is " + std::to_string(size) + " bytes, over the limit of " +
                        std::to_string(max_file_bytes));
-            std::ifstream probe(p, std::ios::binary);
-            if (!probe) v.Fail("cannot read " + at);
+            if (!CanOpen(p)) v.Fail("cannot read " + at);
         }
         files.push_back({section, given, resolved});
         return resolved;
@@ -780,16 +790,18 @@ SceneRecords ParseSandboxedSceneFile(const std::string& path, const SceneLoadOpt
         throw std::invalid_argument("the scene file is not inside its sandbox root");
     if (std::string why = CheckBundleFile(root, rel, options.max_file_bytes); !why.empty())
         throw SceneError(shown, "scene file " + why);
-    std::ifstream in(scene, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (!in) throw SceneError(shown, "error reading scene file");
+    std::string text;
+    try {
+        text = ReadFileBelow(root.string(), rel.string(), options.max_file_bytes);
+    } catch (const std::runtime_error& e) {
+        throw SceneError(shown, std::string("scene file ") + e.what());
+    }
     Context ctx;
     ctx.base_dir = scene.parent_path();
     ctx.sandbox_root = root;
     ctx.scene_dir_in_bundle = rel.parent_path();
     ctx.max_file_bytes = options.max_file_bytes;
-    return ParseDocument(JsonDocument::Parse(text.str(), shown), shown, std::move(ctx));
+    return ParseDocument(JsonDocument::Parse(text, shown), shown, std::move(ctx));
 }
 
 Context LocalContext(const std::string& path, uint64_t max_file_bytes) {
@@ -802,9 +814,13 @@ Context LocalContext(const std::string& path, uint64_t max_file_bytes) {
 }  // namespace
 
 SceneRecords ParseSceneFile(const std::string& path, const SceneLoadOptions& options) {
-    if (options.sandboxed) return ParseSandboxedSceneFile(path, options);
-    return ParseDocument(JsonDocument::Load(path), path,
-                         LocalContext(path, options.max_file_bytes));
+    SceneRecords rec = options.sandboxed
+                           ? ParseSandboxedSceneFile(path, options)
+                           : ParseDocument(JsonDocument::Load(path), path,
+                                           LocalContext(path, options.max_file_bytes));
+    rec.max_file_bytes = options.max_file_bytes;
+    rec.image_limits = options.image_limits;
+    return rec;
 }
 
 SceneRecords ParseSceneText(const std::string& text, const std::string& path) {

@@ -117,6 +117,9 @@ struct SceneRecords {
     // The bundle root when loaded sandboxed (SceneLoadOptions), else empty: the builder
     // removes it from readers' messages, which name files by their path on this machine.
     std::string sandbox_root;
+    // How the builder reads referenced files (SceneLoadOptions).
+    uint64_t max_file_bytes = SceneLoadOptions().max_file_bytes;
+    ImageDecodeLimits image_limits;
     // The files the scene references (meshes, images) as written in it, each once (the
     // first spelling of each resolved path), in order of appearance in the file.
     std::vector<std::string> referenced_files;
