@@ -2,13 +2,16 @@
 
 #include <fcntl.h>
 #include <grpcpp/grpcpp.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -17,6 +20,7 @@
 
 #include "blob_client.h"
 #include "job_progress.h"
+#include "sha256.h"
 
 namespace tessera {
 
@@ -32,8 +36,74 @@ void SetDeadline(grpc::ClientContext& ctx, std::chrono::seconds timeout) {
     ctx.set_deadline(std::chrono::system_clock::now() + timeout);
 }
 
+// How long a call waits for the coordinator to answer a connection (one slow to start,
+// restarting, or far away) before failing: TESSERA_CONNECT_TIMEOUT seconds, default 30;
+// 0 fails at once.
+std::chrono::milliseconds ConnectWait() {
+    static const std::chrono::milliseconds wait = [] {
+        constexpr auto kDefault = std::chrono::seconds(30);
+        const char* text = std::getenv("TESSERA_CONNECT_TIMEOUT");
+        if (text == nullptr || *text == '\0') return std::chrono::milliseconds(kDefault);
+        char* end = nullptr;
+        const double seconds = std::strtod(text, &end);
+        if (*end != '\0' || !(seconds >= 0) || seconds > 86400) {
+            spdlog::warn(
+                "TESSERA_CONNECT_TIMEOUT='{}' is not a number of seconds in [0, 86400]; "
+                "waiting {} s",
+                text, kDefault.count());
+            return std::chrono::milliseconds(kDefault);
+        }
+        return std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000));
+    }();
+    return wait;
+}
+
+// Readies `ctx` for a call of at most `timeout` once connected. First waits (within
+// ConnectWait) for the channel to connect, gRPC retrying the connection with its backoff;
+// once connected, the call itself waits for a connection lost meanwhile (wait-for-ready)
+// instead of failing at once. A channel that never connected makes a fail-fast call, so
+// that the error says why (connection refused, a TLS failure) rather than "deadline".
+void PrepareCall(grpc::Channel& channel, grpc::ClientContext& ctx, std::chrono::seconds timeout) {
+    const bool connected =
+        channel.WaitForConnected(std::chrono::system_clock::now() + ConnectWait());
+    ctx.set_wait_for_ready(connected);
+    SetDeadline(ctx, timeout);
+}
+
+// Makes the unary call `call(ctx)` that may safely be repeated (a read, a cancel),
+// again with backoff while the coordinator answers UNAVAILABLE (restarting, overloaded),
+// for at most ConnectWait.
+template <typename Call>
+grpc::Status Retrying(grpc::Channel& channel, std::chrono::seconds timeout, const Call& call) {
+    const auto give_up = std::chrono::steady_clock::now() + ConnectWait();
+    auto pause = std::chrono::milliseconds(100);
+    for (;;) {
+        grpc::ClientContext ctx;
+        PrepareCall(channel, ctx, timeout);
+        grpc::Status status = call(ctx);
+        if (status.error_code() != grpc::StatusCode::UNAVAILABLE ||
+            std::chrono::steady_clock::now() + pause >= give_up)
+            return status;
+        spdlog::debug("coordinator unavailable ({}); trying again in {} ms", status.error_message(),
+                      pause.count());
+        std::this_thread::sleep_for(pause);
+        pause = std::min(pause * 2, std::chrono::milliseconds(2000));
+    }
+}
+
 void Check(const grpc::Status& status, const std::string& what) {
     if (!status.ok()) throw FarmError(what + ": " + StatusText(status), status.error_code());
+}
+
+// The trailing metadata in which the coordinator sends a frame file's SHA-256 (lowercase
+// hex) after streaming it (the DownloadFrame handler in coordinator/service_farm.cpp).
+constexpr const char* kFrameSha256Header = "tessera-sha256";
+
+// The value of the server's trailing metadata `key` after a finished call, or "".
+std::string TrailingValue(const grpc::ClientContext& ctx, const std::string& key) {
+    const auto& trailers = ctx.GetServerTrailingMetadata();
+    auto it = trailers.find(key);
+    return it == trailers.end() ? "" : std::string(it->second.data(), it->second.size());
 }
 
 // Strips "JOB_STATE_" / "FRAME_STATE_" from a generated enum name.
@@ -119,7 +189,9 @@ const v1::FrameStatus* CurrentFrame(const v1::JobStatus& job) {
     return nullptr;
 }
 
-FarmClient::FarmClient(const std::string& address) : address_(address) {
+FarmClient::FarmClient(const std::string& address) : FarmClient(CoordinatorEndpoint{address, {}}) {}
+
+FarmClient::FarmClient(const CoordinatorEndpoint& endpoint) : address_(endpoint.address) {
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(64 << 20);
     // gRPC's reconnect backoff grows to two minutes by default; `watch` should find a
@@ -127,7 +199,7 @@ FarmClient::FarmClient(const std::string& address) : address_(address) {
     args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
     args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 200);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-    channel_ = grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+    channel_ = MakeChannel(address_, endpoint.security.Resolve(), args);
     farm_ = v1::Farm::NewStub(channel_);
     blobs_ = v1::BlobStore::NewStub(channel_);
 }
@@ -136,13 +208,14 @@ std::string FarmClient::Submit(const std::vector<BundleEntry>& bundle, v1::JobSp
     if (bundle.empty()) throw std::invalid_argument("an empty bundle has no scene");
     std::set<std::string> missing;
     {
-        grpc::ClientContext ctx;
-        SetDeadline(ctx, kCallTimeout);
         v1::FindMissingBlobsRequest req;
         for (const BundleEntry& e : bundle) req.add_hashes(e.hash);
         v1::FindMissingBlobsResponse resp;
-        Check(blobs_->FindMissingBlobs(&ctx, req, &resp),
-              "cannot reach the coordinator at " + address_);
+        Check(Retrying(*channel_, kCallTimeout,
+                       [&](grpc::ClientContext& ctx) {
+                           return blobs_->FindMissingBlobs(&ctx, req, &resp);
+                       }),
+              "cannot submit to the coordinator at " + address_);
         missing.insert(resp.missing().begin(), resp.missing().end());
     }
     for (const BundleEntry& e : bundle) {
@@ -160,8 +233,9 @@ std::string FarmClient::Submit(const std::vector<BundleEntry>& bundle, v1::JobSp
         f->set_hash(e.hash);
         f->set_size(e.size);
     }
+    // Not repeated: a submission that reached the coordinator may have created the job.
     grpc::ClientContext ctx;
-    SetDeadline(ctx, kSubmitTimeout);
+    PrepareCall(*channel_, ctx, kSubmitTimeout);
     v1::SubmitJobRequest req;
     *req.mutable_spec() = std::move(spec);
     v1::SubmitJobResponse resp;
@@ -170,31 +244,43 @@ std::string FarmClient::Submit(const std::vector<BundleEntry>& bundle, v1::JobSp
 }
 
 v1::JobStatus FarmClient::GetJob(const std::string& job_id) {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx, kCallTimeout);
     v1::GetJobRequest req;
     req.set_job_id(job_id);
     v1::JobStatus status;
-    Check(farm_->GetJob(&ctx, req, &status), "cannot get job '" + job_id + "'");
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) { return farm_->GetJob(&ctx, req, &status); }),
+          "cannot get job '" + job_id + "'");
     return status;
 }
 
 std::vector<v1::JobStatus> FarmClient::ListJobs() {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx, kCallTimeout);
     v1::ListJobsResponse resp;
-    Check(farm_->ListJobs(&ctx, v1::ListJobsRequest(), &resp), "cannot list jobs");
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) {
+                       return farm_->ListJobs(&ctx, v1::ListJobsRequest(), &resp);
+                   }),
+          "cannot list jobs");
     return {resp.jobs().begin(), resp.jobs().end()};
 }
 
 v1::JobStatus FarmClient::Cancel(const std::string& job_id) {
-    grpc::ClientContext ctx;
-    SetDeadline(ctx, kCallTimeout);
     v1::CancelJobRequest req;
     req.set_job_id(job_id);
     v1::CancelJobResponse resp;
-    Check(farm_->CancelJob(&ctx, req, &resp), "cannot cancel job '" + job_id + "'");
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) { return farm_->CancelJob(&ctx, req, &resp); }),
+          "cannot cancel job '" + job_id + "'");
     return resp.status();
+}
+
+std::vector<v1::WorkerStatus> FarmClient::ListWorkers() {
+    v1::ListWorkersResponse resp;
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) {
+                       return farm_->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp);
+                   }),
+          "cannot list the workers");
+    return {resp.workers().begin(), resp.workers().end()};
 }
 
 void FarmClient::DownloadFrame(const std::string& job_id, int frame, bool preview,
@@ -217,22 +303,40 @@ void FarmClient::DownloadFrame(const std::string& job_id, int frame, bool previe
     };
 
     grpc::ClientContext ctx;
+    ctx.set_wait_for_ready(
+        channel_->WaitForConnected(std::chrono::system_clock::now() + ConnectWait()));
     v1::DownloadFrameRequest req;
     req.set_job_id(job_id);
     req.set_frame(frame);
     req.set_preview(preview);
     auto reader = farm_->DownloadFrame(&ctx, req);
     v1::FileChunk chunk;
+    Sha256 received;
     bool write_ok = out != nullptr;
     while (reader->Read(&chunk)) {
+        received.Update(chunk.data());
         if (write_ok && !chunk.data().empty())
             write_ok = std::fwrite(chunk.data().data(), 1, chunk.data().size(), out) ==
                        chunk.data().size();
     }
+    const std::string what = "frame " + std::to_string(frame) + " of job " + job_id;
     grpc::Status status = reader->Finish();
     if (!status.ok()) {
         discard();
-        Check(status, "cannot download frame " + std::to_string(frame) + " of job " + job_id);
+        Check(status, "cannot download " + what);
+    }
+    // The coordinator sends the file's SHA-256 after its bytes: a copy damaged on the way
+    // never replaces `path`.
+    const std::string expected = TrailingValue(ctx, kFrameSha256Header);
+    const std::string got = received.Finish();
+    if (expected.empty()) {
+        spdlog::warn("the coordinator sent no checksum for {}: {} is not verified", what, path);
+    } else if (expected != got) {
+        discard();
+        throw FarmError("DATA_LOSS: " + what + " arrived damaged (SHA-256 " + got +
+                            ", the coordinator's file has " + expected + "); " + path +
+                            " was not written: fetch it again",
+                        grpc::StatusCode::DATA_LOSS);
     }
     write_ok = write_ok && std::fflush(out) == 0 && ::fsync(fileno(out)) == 0;
     write_ok = std::fclose(out) == 0 && write_ok;

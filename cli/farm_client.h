@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bundle.h"
+#include "security.h"
 #include "tessera/v1/tessera.grpc.pb.h"
 
 namespace tessera {
@@ -47,10 +48,20 @@ struct FollowOptions {
     bool quiet = false;
 };
 
+// Where the coordinator listens, and how to reach it (TLS files, token file).
+struct CoordinatorEndpoint {
+    std::string address;
+    ClientSecurityFlags security;
+};
+
 class FarmClient {
   public:
-    // "host:port"; plaintext. Connection errors surface on the first call.
+    // "host:port", plaintext, no token: a farm on loopback that `tessera farm` started.
     explicit FarmClient(const std::string& address);
+    // With the endpoint's TLS and token settings (resolved from flags and the
+    // environment; throws std::runtime_error if a file is unreadable). Connection errors
+    // surface on the first call.
+    explicit FarmClient(const CoordinatorEndpoint& endpoint);
 
     const std::string& Address() const { return address_; }
 
@@ -61,6 +72,7 @@ class FarmClient {
     v1::JobStatus GetJob(const std::string& job_id);
     std::vector<v1::JobStatus> ListJobs();
     v1::JobStatus Cancel(const std::string& job_id);
+    std::vector<v1::WorkerStatus> ListWorkers();
     // Streams the frame's EXR (or PNG preview) into `path`, atomically: a temporary file
     // in the same folder, then a rename.
     void DownloadFrame(const std::string& job_id, int frame, bool preview, const std::string& path);

@@ -43,6 +43,7 @@ void PrintJobDetail(const v1::JobStatus& job) {
             "  finished   %s (after %s)\n", LocalTime(job.finished_unix_ms()).c_str(),
             FormatDuration((job.finished_unix_ms() - job.submitted_unix_ms()) * 1e-3).c_str());
     if (!job.error().empty()) std::printf("  error      %s\n", job.error().c_str());
+    if (!job.farm_problem().empty()) std::printf("  paused     %s\n", job.farm_problem().c_str());
     for (const v1::FrameStatus& f : job.frames()) {
         // The stage under way, while there is one: "photons 12/16".
         std::string stage =
@@ -84,11 +85,20 @@ void PrintJobTable(const std::vector<v1::JobStatus>& jobs) {
 
 struct JobCommandOptions {
     std::string job_id;
-    std::string coordinator;
+    CoordinatorEndpoint coordinator;
     std::string output_dir;
     bool preview = false;
     bool quiet = false;
 };
+
+// Workers that get no tasks for now, because they failed too many in a row.
+void PrintWorkersPutAside(const std::vector<v1::WorkerStatus>& workers) {
+    for (const v1::WorkerStatus& w : workers)
+        if (w.state() == "put aside")
+            std::printf("worker %s (%s) put aside until %s: %d tasks failed in a row\n",
+                        w.name().c_str(), w.worker_id().c_str(),
+                        LocalTime(w.put_aside_until_unix_ms()).c_str(), w.failures_in_a_row());
+}
 
 void RunStatus(const JobCommandOptions& o) {
     FarmClient client(o.coordinator);
@@ -96,6 +106,32 @@ void RunStatus(const JobCommandOptions& o) {
         PrintJobTable(client.ListJobs());
     else
         PrintJobDetail(client.GetJob(o.job_id));
+    PrintWorkersPutAside(client.ListWorkers());
+}
+
+void RunWorkers(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    const std::vector<v1::WorkerStatus> workers = client.ListWorkers();
+    if (workers.empty()) {
+        std::printf("no workers\n");
+        return;
+    }
+    int name_width = 4;
+    for (const v1::WorkerStatus& w : workers)
+        name_width = std::max(name_width, static_cast<int>(w.name().size()));
+    std::printf("%-*s  %-8s  %-9s  %7s  %5s  %-19s  %s\n", name_width, "NAME", "ID", "STATE",
+                "THREADS", "TASKS", "LAST SEEN", "NOTE");
+    for (const v1::WorkerStatus& w : workers) {
+        std::string note;
+        if (w.state() == "put aside")
+            note = "until " + LocalTime(w.put_aside_until_unix_ms()) + ", " +
+                   std::to_string(w.failures_in_a_row()) + " failures in a row";
+        else if (w.failures_in_a_row() > 0)
+            note = std::to_string(w.failures_in_a_row()) + " failures in a row";
+        std::printf("%-*s  %-8s  %-9s  %7d  %5d  %-19s  %s\n", name_width, w.name().c_str(),
+                    w.worker_id().c_str(), w.state().c_str(), w.threads(), w.tasks_leased(),
+                    LocalTime(w.last_seen_unix_ms()).c_str(), note.c_str());
+    }
 }
 
 void RunWatch(const JobCommandOptions& o) {
@@ -179,6 +215,12 @@ void AddJobCommands(CLI::App& app) {
     auto status = std::make_shared<JobCommandOptions>();
     AddJobCommand(app, "status", "Show one job in detail, or all jobs as a table", status, false)
         ->callback([status] { RunStatus(*status); });
+
+    auto workers = std::make_shared<JobCommandOptions>();
+    CLI::App* workers_cmd = app.add_subcommand(
+        "workers", "List the workers: state, tasks, last heartbeat, and those put aside");
+    AddCoordinatorOption(*workers_cmd, workers->coordinator);
+    workers_cmd->callback([workers] { RunWorkers(*workers); });
 
     auto watch = std::make_shared<JobCommandOptions>();
     CLI::App* watch_cmd = AddJobCommand(

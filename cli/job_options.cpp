@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "convert.h"
+#include "security_options.h"
 
 namespace tessera {
 
@@ -127,10 +128,11 @@ v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) cons
     return spec;
 }
 
-void AddCoordinatorOption(CLI::App& cmd, std::string& address) {
-    cmd.add_option("--coordinator", address, "The coordinator's HOST:PORT")
+void AddCoordinatorOption(CLI::App& cmd, CoordinatorEndpoint& endpoint) {
+    cmd.add_option("--coordinator", endpoint.address, "The coordinator's HOST:PORT")
         ->envname("TESSERA_COORDINATOR")
         ->required();
+    AddClientSecurityOptions(cmd, endpoint.security);
 }
 
 void LogToStderr() {

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
+#include "farm_client.h"
 #include "plan/render_settings.h"
 #include "tessera/v1/tessera.pb.h"
 
@@ -38,8 +39,9 @@ struct JobOptions {
     v1::JobSpec Spec(const CLI::App& cmd, const std::string& scene) const;
 };
 
-// --coordinator HOST:PORT, or $TESSERA_COORDINATOR.
-void AddCoordinatorOption(CLI::App& cmd, std::string& address);
+// --coordinator HOST:PORT, or $TESSERA_COORDINATOR, and how to reach it securely
+// (security_options.h: --tls-ca, --token-file, ...).
+void AddCoordinatorOption(CLI::App& cmd, CoordinatorEndpoint& endpoint);
 
 // Sends log lines (and the errors main() prints) to stderr: stdout carries only results
 // that scripts read, such as the job id that `submit` prints.

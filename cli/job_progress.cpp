@@ -44,6 +44,8 @@ std::string JobProgress::ProgressText(const v1::JobStatus& status) const {
                   static_cast<int>(frac * 100), FramesDone(status), status.frames_size());
     text += buf;
     if (std::string stage = CurrentStage(status); !stage.empty()) text += ", " + stage;
+    if (!status.farm_problem().empty() && !IsFinished(status.state()))
+        text += ", paused: " + status.farm_problem();
     return text + ", elapsed " + FormatDuration(elapsed) + ", ETA " + eta;
 }
 
@@ -74,6 +76,9 @@ void JobProgress::Update(const v1::JobStatus& status) {
         std::string text = FailureText(status.failures(i));
         if (failures_seen_.insert(text).second) Note(text);
     }
+    // Said once (the bar repeats it while it lasts): the farm is paused, not the job broken.
+    if (!status.farm_problem().empty() && failures_seen_.insert(status.farm_problem()).second)
+        Note(status.farm_problem());
     for (const v1::FrameStatus& f : status.frames()) {
         if (f.state() != v1::FRAME_STATE_DONE || !frames_done_.insert(f.frame()).second) continue;
         if (!first_) Note("frame " + std::to_string(f.frame()) + " done");

@@ -9,6 +9,7 @@
 #include "farm_commands.h"
 #include "job_options.h"
 #include "render_command.h"
+#include "security_commands.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"Tessera: a tile-based Monte Carlo renderer and render farm"};
@@ -19,6 +20,8 @@ int main(int argc, char** argv) {
     tessera::AddSubmitCommand(app);
     tessera::AddJobCommands(app);
     tessera::AddFarmCommand(app);
+    tessera::AddCertCommand(app);
+    tessera::AddTokenCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

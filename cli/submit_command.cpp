@@ -12,7 +12,7 @@ namespace {
 
 struct SubmitOptions {
     std::string scene;
-    std::string coordinator;
+    CoordinatorEndpoint coordinator;
     JobOptions job;
     bool watch = false;
     bool quiet = false;

@@ -2,9 +2,12 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 
+#include "disk_space.h"
 #include "plan/render_plan.h"
 
 namespace tessera {
@@ -32,6 +35,35 @@ void ReadResults(const std::vector<std::pair<int, std::string>>& results,
         }
     }
     if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error);
+}
+
+// Writes one image file through `write` (OpenImageIO, which reports failures as text and
+// may not report a failed flush at all). Lack of space becomes NoSpaceError naming `dir`:
+// checked before (less free than the file may need: `bytes_needed`, an upper bound), by
+// the writer's text (where the library passes errno on) and after (a file system left
+// with nothing free has most likely cut the file short: it is removed).
+void WriteImageFile(const std::string& dir, const std::string& path, uint64_t bytes_needed,
+                    const std::function<void()>& write) {
+    if (const std::optional<uint64_t> free = FreeBytes(dir); free && *free < bytes_needed)
+        ThrowNoSpace(dir,
+                     fmt::format("{} bytes free, {} may need up to {}", *free, path, bytes_needed),
+                     bytes_needed);
+    try {
+        write();
+    } catch (const std::exception& e) {
+        const std::string text = e.what();
+        const std::optional<uint64_t> free = FreeBytes(dir);
+        if (text.find(std::strerror(ENOSPC)) != std::string::npos ||
+            text.find(std::strerror(EDQUOT)) != std::string::npos || (free && *free < bytes_needed))
+            ThrowNoSpace(dir, text, bytes_needed);
+        throw;
+    }
+    if (const std::optional<uint64_t> free = FreeBytes(dir); free && *free == 0) {
+        std::error_code ignored;
+        fs::remove(path, ignored);
+        ThrowNoSpace(dir, path + " may have been cut short: nothing is free after writing it",
+                     bytes_needed);
+    }
 }
 
 }  // namespace
@@ -97,9 +129,17 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
     ImageMetadata meta = FrameMetadata(settings, seconds);
     meta["tessera:scene"] = in.scene_name;
     const std::string exr = FramePath(output_dir, in.job_id, in.name, in.frame, false);
-    fs::create_directories(fs::path(exr).parent_path());
-    WriteExr(exr, image, meta);
-    WritePngPreview(FramePath(output_dir, in.job_id, in.name, in.frame, true), image);
+    const std::string dir = fs::path(exr).parent_path().string();
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec && IsNoSpaceErrno(ec.value())) ThrowNoSpace(dir, "cannot create the folder");
+    if (ec) throw fs::filesystem_error("cannot create the frame folder", dir, ec);
+    // Uncompressed floats at worst, and a margin for headers and the preview.
+    const uint64_t exr_bytes = image.pixels.size() * sizeof(float) + (1 << 20);
+    WriteImageFile(dir, exr, exr_bytes, [&] { WriteExr(exr, image, meta); });
+    const std::string png = FramePath(output_dir, in.job_id, in.name, in.frame, true);
+    const uint64_t png_bytes = uint64_t(image.width) * image.height * 4 + (1 << 20);
+    WriteImageFile(dir, png, png_bytes, [&] { WritePngPreview(png, image); });
     return exr;
 }
 

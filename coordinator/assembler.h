@@ -44,7 +44,8 @@ std::string MergeStage(const StageMergeInput& input, BlobStore& blobs);
 // Assembles and writes one frame as
 // <output>/<job_id>/<name>.<frame:04>.exr and a PNG preview beside it, both atomically;
 // returns the EXR's path. Throws UnreadableResults if tile results cannot be read back,
-// std::exception on anything else (a failed write).
+// NoSpaceError if the output's file system is full (the frame can be written again once
+// space returns), std::exception on anything else (a failed write).
 std::string WriteFrame(const FrameAssemblyInput& input, BlobStore& blobs,
                        const std::string& output_dir, int64_t now_ms);
 

@@ -65,6 +65,13 @@ std::string BlobStore::TempPath(const std::string& hash) const {
            std::to_string(counter.fetch_add(1)) + ".tmp";
 }
 
+void BlobStore::CheckSpace(int error, const std::string& detail) const {
+    if (!IsNoSpaceErrno(error)) return;
+    const NoSpaceError no_space(root_, detail);
+    if (no_space_listener_) no_space_listener_(no_space);
+    throw no_space;
+}
+
 bool BlobStore::Has(const std::string& hash) const { return Size(hash).has_value(); }
 
 std::optional<uint64_t> BlobStore::Size(const std::string& hash) const {
@@ -141,11 +148,22 @@ void BlobStore::Materialize(const std::string& hash, const std::string& dest) co
     CheckHash(hash);
     std::string src = PathOf(hash);
     if (!Has(hash)) ThrowError(ErrorCode::kNotFound, "no blob " + hash);
-    fs::create_directories(fs::path(dest).parent_path());
     std::error_code ec;
+    fs::create_directories(fs::path(dest).parent_path(), ec);
+    if (ec) {
+        CheckSpace(ec.value(), "cannot create the folder of " + dest);
+        throw fs::filesystem_error("cannot create the folder", fs::path(dest).parent_path(), ec);
+    }
     fs::remove(dest, ec);
     fs::create_hard_link(src, dest, ec);
-    if (ec) fs::copy_file(src, dest, fs::copy_options::overwrite_existing);
+    if (!ec) return;
+    fs::copy_file(src, dest, fs::copy_options::overwrite_existing, ec);
+    if (ec) {
+        std::error_code ignored;
+        fs::remove(dest, ignored);  // no partial copy stays behind
+        CheckSpace(ec.value(), "cannot copy blob " + hash + " to " + dest);
+        throw fs::filesystem_error("cannot copy a blob", src, dest, ec);
+    }
 }
 
 BlobWriter::BlobWriter(const BlobStore& store, std::string hash, uint64_t size,
@@ -171,9 +189,11 @@ void BlobWriter::OpenTemp() {
     temp_path_ = store_.TempPath(hash_);
     fd_ = ::open(temp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd_ < 0) {
+        const int error = errno;
         std::string why = ErrnoText();
         temp_path_.clear();
         Discard();
+        store_.CheckSpace(error, "cannot create a temporary file for blob " + hash_);
         ThrowError(ErrorCode::kInternal,
                    "cannot create a temporary file for blob " + hash_ + ": " + why);
     }
@@ -185,8 +205,10 @@ void BlobWriter::WriteOut(std::string_view data) {
         ssize_t n = ::write(fd_, data.data(), data.size());
         if (n < 0) {
             if (errno == EINTR) continue;
+            const int error = errno;
             std::string why = ErrnoText();
             Discard();
+            store_.CheckSpace(error, "cannot write blob " + hash_);
             ThrowError(ErrorCode::kInternal, "cannot write blob " + hash_ + ": " + why);
         }
         data.remove_prefix(static_cast<size_t>(n));
@@ -231,22 +253,40 @@ bool BlobWriter::Commit() {
     buffer_ = std::string();
     const bool durable = durability_ == Durability::kDurable;
     if (durable && ::fsync(fd_) != 0) {
+        const int error = errno;
         std::string why = ErrnoText();
         Discard();
+        store_.CheckSpace(error, "cannot sync blob " + hash_);
         ThrowError(ErrorCode::kInternal, "cannot sync blob " + hash_ + ": " + why);
     }
-    ::close(fd_);
+    // Some file systems (NFS, quotas) report a full disk only when the file is closed.
+    const int closed = ::close(fd_);
+    const int close_error = errno;
     fd_ = -1;
+    if (closed != 0 && IsNoSpaceErrno(close_error)) {
+        Discard();
+        store_.CheckSpace(close_error, "cannot write blob " + hash_);
+    }
     const std::string final_path = store_.PathOf(hash_);
     if (::rename(temp_path_.c_str(), final_path.c_str()) != 0) {
+        const int error = errno;
         std::string why = ErrnoText();
         Discard();
+        store_.CheckSpace(error, "cannot store blob " + hash_);
         ThrowError(ErrorCode::kInternal, "cannot store blob " + hash_ + ": " + why);
     }
     temp_path_.clear();
     closed_ = true;
     if (durable) FsyncPath(fs::path(final_path).parent_path().string());
     return true;
+}
+
+void BlobWriter::AppendToFile(std::string_view data) {
+    Append(data);
+    if (!buffer_.empty()) {
+        WriteOut(buffer_);
+        buffer_ = std::string();
+    }
 }
 
 }  // namespace tessera

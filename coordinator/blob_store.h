@@ -12,13 +12,18 @@
 // may be stored with Durability::kRecomputable: same temporary file and rename, but no
 // fsync. After an OS crash such a blob may be missing, empty or hold the wrong bytes;
 // its reader must use ReadVerified, which notices and removes the damaged file.
+//
+// A write that fails for lack of space (ENOSPC, EDQUOT) throws NoSpaceError naming the
+// store's folder, after telling the no-space listener, whoever the caller is.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
 
+#include "disk_space.h"
 #include "sha256.h"
 
 namespace tessera {
@@ -62,13 +67,23 @@ class BlobStore {
     void Materialize(const std::string& hash, const std::string& dest) const;
 
     uint64_t MaxBlobBytes() const { return max_blob_bytes_; }
+    const std::string& Root() const { return root_; }
+
+    // Hears every write refused for lack of space. Set before the store is shared.
+    void SetNoSpaceListener(std::function<void(const NoSpaceError&)> listener) {
+        no_space_listener_ = std::move(listener);
+    }
 
   private:
     friend class BlobWriter;
     std::string TempPath(const std::string& hash) const;
+    // Throws NoSpaceError if `error` (an errno) means the disk is full, after telling the
+    // listener; returns otherwise.
+    void CheckSpace(int error, const std::string& detail) const;
 
     std::string root_;
     uint64_t max_blob_bytes_;
+    std::function<void(const NoSpaceError&)> no_space_listener_;
 };
 
 class BlobWriter {
@@ -85,6 +100,9 @@ class BlobWriter {
     // was already present.
     bool Commit();
     uint64_t Received() const { return received_; }
+    // As Append, but the bytes go to the temporary file before it returns and none stay
+    // in memory: for uploads from clients, which may be many, large and slow.
+    void AppendToFile(std::string_view data);
 
   private:
     friend class BlobStore;

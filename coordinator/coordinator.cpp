@@ -62,13 +62,17 @@ Coordinator::Coordinator(const CoordinatorOptions& options, const Clock& clock)
     : options_(options),
       clock_(clock),
       lock_(options.state_dir),
+      space_(options.resume_free_bytes),
       blobs_(options.state_dir + "/blobs", options.limits.max_bundle_bytes),
       scheduler_(options.state_dir + "/tessera.db", options.scheduler, clock),
       planner_(blobs_, options.state_dir + "/jobs", options.limits),
-      frame_work_(scheduler_, blobs_, EnsureDir(options.output_dir, "output"), clock),
-      dispatcher_(scheduler_),
+      frame_work_(scheduler_, blobs_, EnsureDir(options.output_dir, "output"), clock, space_),
+      gates_(options.resources),
+      dispatcher_(scheduler_, &space_),
       watches_(scheduler_) {
     scheduler_.SetListener(this);
+    blobs_.SetNoSpaceListener([this](const NoSpaceError& e) { space_.Report(e); });
+    space_.SetListener([this](const std::string& problem) { OnFarmProblem(problem); });
 }
 
 Coordinator::~Coordinator() {
@@ -129,29 +133,62 @@ void Coordinator::Stop() {
 
 void Coordinator::SweepLoop() {
     constexpr auto kCheckpointInterval = std::chrono::seconds(1);
+    constexpr auto kProbeInterval = std::chrono::seconds(1);
     auto next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
+    auto next_probe = std::chrono::steady_clock::now();
     std::unique_lock lock(sweep_mu_);
     while (!sweep_stop_) {
         sweep_cv_.wait_for(lock, std::chrono::milliseconds(options_.sweep_interval_ms),
                            [this] { return sweep_stop_; });
         if (sweep_stop_) break;
         lock.unlock();
-        try {
-            scheduler_.Sweep();
-            if (std::chrono::steady_clock::now() >= next_checkpoint) {
-                scheduler_.Checkpoint();
+        const auto now = std::chrono::steady_clock::now();
+        if (space_.OutOfSpace()) {
+            // Expired leases wait too: re-queuing them is a write, and nothing is leased
+            // meanwhile. Once space is back they are re-queued at the next sweep.
+            if (now >= next_probe) {
+                space_.Probe();
+                next_probe = now + kProbeInterval;
+            }
+        } else {
+            RunPeriodic("lease sweep", [this] { scheduler_.Sweep(); });
+            if (now >= next_checkpoint) {
+                RunPeriodic("WAL checkpoint", [this] { scheduler_.Checkpoint(); });
                 next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
             }
-        } catch (const std::exception& e) {
-            spdlog::error("lease sweep failed: {}", e.what());
         }
         lock.lock();
     }
 }
 
-std::string Coordinator::SubmitJob(const v1::JobSpec& spec) {
-    PlannedJob planned = planner_.Plan(spec);
-    std::string job_id = scheduler_.AddJob(planned.job);
+std::string Coordinator::SubmitJob(const v1::JobSpec& spec, const TokenLimits& token_limits) {
+    const std::string token = "token '" + token_limits.token_name + "'";
+    if (token_limits.max_priority && spec.priority() > *token_limits.max_priority)
+        ThrowError(ErrorCode::kInvalidArgument,
+                   fmt::format("priority {} is over the limit of {}, {}", spec.priority(), token,
+                               *token_limits.max_priority));
+    PlannedJob planned = Watched([&] { return planner_.Plan(spec); });
+    // The scene decides what the spec leaves open (its resolution, say): check the
+    // resolved job.
+    const JobSettings& settings = planned.job.settings;
+    const int frames = planned.job.frame_end - planned.job.frame_start + 1;
+    if (token_limits.max_frames && frames > *token_limits.max_frames)
+        ThrowError(ErrorCode::kResourceExhausted,
+                   fmt::format("{} frames requested; {} allows at most {} per job", frames, token,
+                               *token_limits.max_frames));
+    if (token_limits.max_resolution &&
+        std::max(settings.width, settings.height) > *token_limits.max_resolution)
+        ThrowError(
+            ErrorCode::kResourceExhausted,
+            fmt::format("resolution {}x{} is over the limit of {}, {} per axis", settings.width,
+                        settings.height, token, *token_limits.max_resolution));
+    if (token_limits.max_spp && settings.spp > *token_limits.max_spp)
+        ThrowError(ErrorCode::kResourceExhausted,
+                   fmt::format("{} spp is over the limit of {}, {}", settings.spp, token,
+                               *token_limits.max_spp));
+    std::lock_guard admission(admission_mu_);
+    planner_.CheckQueuedTasks(planned, QueuedTasks());
+    std::string job_id = Watched([&] { return scheduler_.AddJob(planned.job); });
     try {
         planned.Adopt(planner_.JobsDir(), job_id);
     } catch (const std::exception& e) {
@@ -159,6 +196,14 @@ std::string Coordinator::SubmitJob(const v1::JobSpec& spec) {
         spdlog::warn("job {}: cannot keep its bundle: {}", job_id, e.what());
     }
     return job_id;
+}
+
+int64_t Coordinator::QueuedTasks() {
+    int64_t queued = 0;
+    for (const v1::JobStatus& job : scheduler_.ListJobs())
+        if (job.state() == v1::JOB_STATE_QUEUED || job.state() == v1::JOB_STATE_RUNNING)
+            queued += int64_t(job.tasks_total()) - job.tasks_done();
+    return queued;
 }
 
 std::string Coordinator::FrameFile(const std::string& job_id, int frame, bool preview) {
@@ -222,8 +267,66 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
     }
     // Not synced: if a crash loses it, the stage's merge or the frame's assembly notices
     // and the task runs again.
-    if (inline_result) blobs_.Put(hash, result, Durability::kRecomputable);
-    scheduler_.Complete(worker_id, task_id, lease_id, lease_token, hash);
+    // Lacking space for either, the call fails before the lease is consumed: the worker
+    // may try again, or the task is leased again once its lease runs out.
+    Watched([&] {
+        if (inline_result) blobs_.Put(hash, result, Durability::kRecomputable);
+        scheduler_.Complete(worker_id, task_id, lease_id, lease_token, hash);
+    });
+}
+
+void Coordinator::FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
+                           const std::string& lease_token, const std::string& message) {
+    if (message.find("no space left on ") == std::string::npos) {
+        Watched([&] { scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message); });
+        return;
+    }
+    // Only the lease's holder may give it back.
+    scheduler_.CheckLease(worker_id, task_id, lease_id, lease_token);
+    if (space_.OutOfSpace())
+        ThrowError(ErrorCode::kResourceExhausted,
+                   space_.Problem() + "; task " + std::to_string(task_id) +
+                       " is not counted as failed: it is leased again once space returns");
+    spdlog::info("task {}: its result could not be stored for lack of space; leased again",
+                 task_id);
+    Watched([&] { scheduler_.Release(task_id, lease_id); });
+}
+
+void Coordinator::OnFarmProblem(const std::string& problem) {
+    scheduler_.SetFarmProblem(problem);
+    if (problem.empty()) {
+        dispatcher_.Notify();
+        frame_work_.Resume();
+    }
+    try {
+        for (const v1::JobStatus& job : scheduler_.ListJobs())
+            if (job.state() == v1::JOB_STATE_QUEUED || job.state() == v1::JOB_STATE_RUNNING)
+                watches_.OnJobChanged(job.job_id(), problem.empty() ? "the farm resumes" : problem);
+    } catch (const std::exception& e) {
+        spdlog::warn("cannot tell the job watchers about the farm: {}", e.what());
+    }
+}
+
+void Coordinator::RunPeriodic(const char* what, const std::function<void()>& step) {
+    auto& [last_error, repeats] = periodic_errors_[what];
+    try {
+        step();
+        if (!last_error.empty())
+            spdlog::info("{} works again (it failed {} more time(s) after the error logged)", what,
+                         repeats);
+        last_error.clear();
+        repeats = 0;
+    } catch (const NoSpaceError& e) {
+        space_.Report(e);
+    } catch (const std::exception& e) {
+        if (e.what() == last_error) {
+            ++repeats;
+            return;
+        }
+        spdlog::error("{} failed: {}", what, e.what());
+        last_error = e.what();
+        repeats = 0;
+    }
 }
 
 }  // namespace tessera

@@ -10,8 +10,17 @@
 //   <state>/jobs/<job>/bundle/   each job's scene bundle, rebuilt from blobs
 //   <state>/LOCK           held (flock) while a coordinator uses the directory
 // Frames are written to <output>/<job_id>/<name>.<frame:04>.exr (+ .png preview).
+//
+// A full disk (state or output) pauses the farm instead of failing jobs: see
+// disk_space.h. Every write path reports NoSpaceError to one DiskSpaceMonitor; while it
+// says the farm is out of space, nothing is leased, merged or assembled, expired leases
+// wait, results that cannot be stored are refused with RESOURCE_EXHAUSTED (the lease
+// stays with its worker), and every unfinished job's status carries the problem. The
+// sweep thread probes the full file system every second and the farm resumes by itself.
 
 #include <condition_variable>
+#include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -20,10 +29,13 @@
 #include "assembler.h"
 #include "blob_store.h"
 #include "clock.h"
+#include "disk_space.h"
 #include "frame_work_queue.h"
 #include "job_planner.h"
 #include "lease_dispatcher.h"
+#include "resource_limits.h"
 #include "scheduler.h"
+#include "token_limits.h"
 #include "watch_hub.h"
 
 namespace tessera {
@@ -33,7 +45,11 @@ struct CoordinatorOptions {
     std::string output_dir;
     SchedulerOptions scheduler;
     PlannerLimits limits;
+    ResourceLimits resources;
     int sweep_interval_ms = 250;
+    // After running out of space, the farm resumes once this many bytes are free on the
+    // file system that was full.
+    uint64_t resume_free_bytes = uint64_t(16) << 20;
 };
 
 class Coordinator final : public SchedulerListener {
@@ -53,20 +69,34 @@ class Coordinator final : public SchedulerListener {
     void Stop();
 
     // --- Farm
-    std::string SubmitJob(const v1::JobSpec& spec);
+    // `token_limits` (the submitting token's, if any) tighten the coordinator's limits:
+    // a job over them is INVALID_ARGUMENT (priority) or RESOURCE_EXHAUSTED, naming the token.
+    std::string SubmitJob(const v1::JobSpec& spec, const TokenLimits& token_limits = {});
     v1::JobStatus GetJob(const std::string& job_id) { return scheduler_.GetJob(job_id); }
     std::vector<v1::JobStatus> ListJobs() { return scheduler_.ListJobs(); }
-    v1::JobStatus CancelJob(const std::string& job_id) { return scheduler_.Cancel(job_id); }
+    std::vector<v1::WorkerStatus> ListWorkers() { return scheduler_.ListWorkers(); }
+    v1::JobStatus CancelJob(const std::string& job_id) {
+        return Watched([&] { return scheduler_.Cancel(job_id); });
+    }
     // The EXR (or PNG preview) of a DONE frame; NOT_FOUND otherwise.
     std::string FrameFile(const std::string& job_id, int frame, bool preview);
     WatchHub& Watches() { return watches_; }
 
     // --- Workers
     WorkerRegistration Register(const std::string& name, int threads) {
-        return scheduler_.RegisterWorker(name, threads);
+        return Watched([&] { return scheduler_.RegisterWorker(name, threads); });
     }
     uint64_t LeaseTask(const std::string& worker_id, int wait_ms, LeaseDispatcher::Callback done) {
-        return dispatcher_.Wait(worker_id, wait_ms, std::move(done));
+        // A long poll holds one of the limited wait slots until it is answered.
+        ConcurrencyLimit::Slot slot;
+        try {
+            slot = gates_.lease_waits.Acquire();
+        } catch (const CoordinatorError&) {
+            done(std::nullopt, std::current_exception());
+            return 0;
+        }
+        return dispatcher_.Wait(worker_id, wait_ms,
+                                HoldUntilAnswered(std::move(slot), std::move(done)));
     }
     void CancelLeaseWait(uint64_t handle) { dispatcher_.Cancel(handle); }
     HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
@@ -82,21 +112,30 @@ class Coordinator final : public SchedulerListener {
     // INVALID_ARGUMENT too, and the task counts as failed on the worker (a renderer
     // fault, not a transport one). The lease is checked first: a stale one is
     // FAILED_PRECONDITION, one the caller does not hold LeaseNotHeld, and nothing is
-    // stored.
+    // stored. A result that cannot be stored for lack of space is RESOURCE_EXHAUSTED
+    // "no space left on ..." and the lease stays the worker's.
     void CompleteTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
                       const std::string& lease_token, const std::string& result_hash,
                       const std::string& result = {});
+    // A failure whose cause is this coordinator's lack of space ("no space left on" in
+    // the message: the result's upload was refused) is not the task's fault and does not
+    // count: while space is short it is RESOURCE_EXHAUSTED and the lease runs out, later
+    // the task is re-queued at once.
     void FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                  const std::string& lease_token, const std::string& message) {
-        scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message);
-    }
+                  const std::string& lease_token, const std::string& message);
 
     // --- Blobs
     BlobStore& Blobs() { return blobs_; }
 
+    // Counted streams and waits (ResourceLimits); the services hold a slot per call.
+    ResourceGates& Gates() { return gates_; }
+    // Unfinished tasks of all unfinished jobs: what PlannerLimits::max_queued_tasks caps.
+    int64_t QueuedTasks();
+
     Scheduler& GetScheduler() { return scheduler_; }
     FrameWorkQueue& FrameWork() { return frame_work_; }
     LeaseDispatcher& Dispatcher() { return dispatcher_; }
+    DiskSpaceMonitor& DiskSpace() { return space_; }
 
     // SchedulerListener
     void OnWorkAvailable() override { dispatcher_.Notify(); }
@@ -122,21 +161,42 @@ class Coordinator final : public SchedulerListener {
     };
 
     void SweepLoop();
+    // Runs one periodic step of the sweep thread: a NoSpaceError is reported, other
+    // errors logged under `what`, a repeat of the same error only counted.
+    void RunPeriodic(const char* what, const std::function<void()>& step);
+    // The monitor's problem changed: shown in job statuses; leasing and frame work
+    // resume when it is gone.
+    void OnFarmProblem(const std::string& problem);
+    // Runs `call`, reporting a NoSpaceError to the monitor on its way out.
+    template <typename F>
+    auto Watched(F&& call) -> decltype(call()) {
+        try {
+            return call();
+        } catch (const NoSpaceError& e) {
+            space_.Report(e);
+            throw;
+        }
+    }
 
     CoordinatorOptions options_;
     const Clock& clock_;
     StateLock lock_;
+    DiskSpaceMonitor space_;
     BlobStore blobs_;
     Scheduler scheduler_;
     JobPlanner planner_;
     FrameWorkQueue frame_work_;
+    ResourceGates gates_;  // before the dispatcher and services whose calls hold its slots
     LeaseDispatcher dispatcher_;
     WatchHub watches_;
+    std::mutex admission_mu_;  // a job's queued-task check and its insertion, as one step
 
     std::mutex sweep_mu_;
     std::condition_variable sweep_cv_;
     bool sweep_stop_ = false;
     std::thread sweep_thread_;
+    // Per periodic step: the error last logged and how often it recurred since.
+    std::map<std::string, std::pair<std::string, int>> periodic_errors_;
 };
 
 }  // namespace tessera

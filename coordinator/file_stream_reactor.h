@@ -1,7 +1,8 @@
 #pragma once
 
 // Streams a file in chunks of at most kBlobChunkBytes as messages with a `data` field
-// (BlobChunk, FileChunk), one write at a time; deletes itself when done.
+// (BlobChunk, FileChunk), one write at a time; deletes itself when done. It holds a
+// chunk or two in memory, and a slot of the coordinator's stream limit until done.
 
 #include <grpcpp/grpcpp.h>
 
@@ -9,6 +10,7 @@
 #include <string>
 
 #include "blob_client.h"
+#include "resource_limits.h"
 
 namespace tessera {
 
@@ -16,7 +18,8 @@ template <typename Chunk>
 class FileStreamReactor final : public grpc::ServerWriteReactor<Chunk> {
   public:
     // `error` (if not OK) finishes the call at once with it.
-    FileStreamReactor(const std::string& path, grpc::Status error) {
+    FileStreamReactor(const std::string& path, grpc::Status error, ConcurrencyLimit::Slot slot = {})
+        : slot_(std::move(slot)) {
         if (!error.ok()) {
             this->Finish(error);
             return;
@@ -54,6 +57,7 @@ class FileStreamReactor final : public grpc::ServerWriteReactor<Chunk> {
         }
     }
 
+    ConcurrencyLimit::Slot slot_;
     std::ifstream in_;
     std::string buffer_;
     Chunk chunk_;

@@ -3,14 +3,20 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <vector>
+
 #include "assembler.h"
 #include "sha256.h"
 
 namespace tessera {
 
 FrameWorkQueue::FrameWorkQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
-                               const Clock& clock)
-    : scheduler_(scheduler), blobs_(blobs), output_dir_(std::move(output_dir)), clock_(clock) {}
+                               const Clock& clock, DiskSpaceMonitor& space)
+    : scheduler_(scheduler),
+      blobs_(blobs),
+      output_dir_(std::move(output_dir)),
+      clock_(clock),
+      space_(space) {}
 
 FrameWorkQueue::~FrameWorkQueue() { Stop(); }
 
@@ -59,10 +65,38 @@ void FrameWorkQueue::WaitIdle() {
     cv_.wait(lock, [this] { return stop_ || (queue_.empty() && !busy_); });
 }
 
+void FrameWorkQueue::Resume() {
+    std::vector<Item> items;
+    {
+        std::lock_guard lock(mu_);
+        items.assign(waiting_for_space_.begin(), waiting_for_space_.end());
+        waiting_for_space_.clear();
+    }
+    if (!items.empty())
+        spdlog::info("{} merge(s) or frame(s) set aside for lack of space are queued again",
+                     items.size());
+    for (const Item& item : items) Enqueue(item);
+    try {
+        for (const auto& [job_id, frame, stage] : scheduler_.StagesAwaitingMerge())
+            EnqueueMerge(job_id, frame, stage);
+        for (const auto& [job_id, frame] : scheduler_.FramesAwaitingAssembly())
+            EnqueueAssembly(job_id, frame);
+    } catch (const std::exception& e) {
+        spdlog::error("cannot list the merges and frames that are due: {}", e.what());
+    }
+    cv_.notify_all();
+}
+
+size_t FrameWorkQueue::WaitingForSpace() {
+    std::lock_guard lock(mu_);
+    return waiting_for_space_.size();
+}
+
 void FrameWorkQueue::Run() {
     std::unique_lock lock(mu_);
     while (true) {
-        cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+        // Nothing runs while the farm is out of space: it would fail for the same reason.
+        cv_.wait(lock, [this] { return stop_ || (!queue_.empty() && !space_.OutOfSpace()); });
         if (stop_) return;
         Item item = queue_.front();
         queue_.pop_front();
@@ -71,14 +105,29 @@ void FrameWorkQueue::Run() {
         queued_.erase(item);
         busy_ = true;
         lock.unlock();
-        const auto& [job_id, frame, stage] = item;
+        Process(item);
+        lock.lock();
+        busy_ = false;
+        cv_.notify_all();
+    }
+}
+
+void FrameWorkQueue::Process(const Item& item) {
+    const auto& [job_id, frame, stage] = item;
+    try {
         if (stage == kAssemble)
             Assemble(job_id, frame);
         else
             Merge(job_id, frame, stage);
-        lock.lock();
-        busy_ = false;
-        cv_.notify_all();
+    } catch (const NoSpaceError& e) {
+        space_.Report(e);
+        std::lock_guard lock(mu_);
+        waiting_for_space_.insert(item);
+        // Space may have come back between the report and now: then nobody would queue it.
+        if (!space_.OutOfSpace()) {
+            waiting_for_space_.erase(item);
+            if (queued_.insert(item).second) queue_.push_back(item);
+        }
     }
 }
 
@@ -104,9 +153,13 @@ void FrameWorkQueue::Merge(const std::string& job_id, int frame, int stage) {
                      stage, e.what());
         try {
             scheduler_.RequeueDoneTasks(job_id, frame, stage, e.Tasks());
+        } catch (const NoSpaceError&) {
+            throw;
         } catch (const std::exception& e2) {
             FailJob(job_id, fmt::format("frame {}: {}", frame, e2.what()));
         }
+    } catch (const NoSpaceError&) {
+        throw;
     } catch (const std::exception& e) {
         FailJob(job_id,
                 fmt::format("frame {}: stage {} could not be merged: {}", frame, stage, e.what()));
@@ -128,9 +181,13 @@ void FrameWorkQueue::Assemble(const std::string& job_id, int frame) {
         spdlog::warn("job {} frame {}: {}; rendering those tiles again", job_id, frame, e.what());
         try {
             scheduler_.RequeueDoneTasks(job_id, frame, input.render_stage, e.Tasks());
+        } catch (const NoSpaceError&) {
+            throw;
         } catch (const std::exception& e2) {
             FailJob(job_id, fmt::format("frame {}: {}", frame, e2.what()));
         }
+    } catch (const NoSpaceError&) {
+        throw;
     } catch (const std::exception& e) {
         FailJob(job_id, fmt::format("frame {} could not be assembled: {}", frame, e.what()));
     }
@@ -140,6 +197,8 @@ void FrameWorkQueue::FailJob(const std::string& job_id, const std::string& messa
     spdlog::error("job {}: {}", job_id, message);
     try {
         scheduler_.FailJob(job_id, message);
+    } catch (const NoSpaceError&) {
+        throw;  // recorded when the item runs again, once space returns
     } catch (const std::exception& e) {
         spdlog::error("job {}: cannot record the failure: {}", job_id, e.what());
     }

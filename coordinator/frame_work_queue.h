@@ -13,7 +13,11 @@
 // so doing one again after a crash changes nothing.
 //
 // A task result that cannot be read back sends its task back to the queue (it runs
-// again) instead of failing the job; any other error fails the job.
+// again) instead of failing the job. A write that fails for lack of space (the artifact,
+// the frame, the database) fails nothing either: the item is reported to the
+// DiskSpaceMonitor and set aside, and while the farm is out of space no item runs; when
+// space returns (Resume) the items set aside are queued again. Any other error fails
+// the job.
 
 #include <condition_variable>
 #include <deque>
@@ -24,6 +28,7 @@
 #include <tuple>
 
 #include "blob_store.h"
+#include "disk_space.h"
 #include "scheduler.h"
 
 namespace tessera {
@@ -31,7 +36,7 @@ namespace tessera {
 class FrameWorkQueue {
   public:
     FrameWorkQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
-                   const Clock& clock);
+                   const Clock& clock, DiskSpaceMonitor& space);
     ~FrameWorkQueue();
 
     // Queues the work left over from before a restart and starts the thread.
@@ -45,6 +50,11 @@ class FrameWorkQueue {
     void Stop();
     // Blocks until the queue is empty and nothing is in progress (for tests).
     void WaitIdle();
+    // Space has returned: queues again the items set aside for lack of it, and the work
+    // the database says is due (merges and assemblies whose tasks are all done).
+    void Resume();
+    // Items set aside until space returns.
+    size_t WaitingForSpace();
 
   private:
     static constexpr int kAssemble = -1;             // the "stage" of an assembly item
@@ -52,6 +62,8 @@ class FrameWorkQueue {
 
     void Enqueue(const Item& item);
     void Run();
+    // Runs one item; a NoSpaceError sets it aside.
+    void Process(const Item& item);
     void Merge(const std::string& job_id, int frame, int stage);
     void Assemble(const std::string& job_id, int frame);
     void FailJob(const std::string& job_id, const std::string& message);
@@ -60,10 +72,12 @@ class FrameWorkQueue {
     BlobStore& blobs_;
     std::string output_dir_;
     const Clock& clock_;
+    DiskSpaceMonitor& space_;
     std::mutex mu_;
     std::condition_variable cv_;
     std::deque<Item> queue_;
     std::set<Item> queued_;
+    std::set<Item> waiting_for_space_;
     bool busy_ = false;
     bool stop_ = false;
     std::thread thread_;

@@ -53,7 +53,7 @@ PlannedJob::~PlannedJob() {
 }
 
 PlannedJob::PlannedJob(PlannedJob&& other) noexcept
-    : job(std::move(other.job)), staging_(std::exchange(other.staging_, {})) {}
+    : job(std::move(other.job)), tasks(other.tasks), staging_(std::exchange(other.staging_, {})) {}
 
 void PlannedJob::Adopt(const std::string& jobs_dir, const std::string& job_id) {
     fs::path dest = fs::path(jobs_dir) / job_id;
@@ -165,6 +165,15 @@ void JobPlanner::CheckSettings(int width, int height, int spp, int64_t tasks) co
                         tasks, limits_.max_tasks));
 }
 
+void JobPlanner::CheckQueuedTasks(const PlannedJob& job, int64_t queued) const {
+    if (job.tasks > limits_.max_queued_tasks - queued)
+        TooLarge(
+            fmt::format("the farm has {} unfinished tasks queued and this job adds {}; this "
+                        "coordinator queues at most {} in all (--max-queued-tasks): wait "
+                        "for jobs to finish, or cancel some",
+                        queued, job.tasks, limits_.max_queued_tasks));
+}
+
 PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     CheckSpec(spec_in);
     v1::JobSpec spec = spec_in;
@@ -227,7 +236,8 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     } catch (const std::invalid_argument& e) {
         Invalid(e.what());
     }
-    CheckSettings(res.x, res.y, s.spp, int64_t(plan.TotalTasks()) * frames);
+    planned.tasks = int64_t(plan.TotalTasks()) * frames;
+    CheckSettings(res.x, res.y, s.spp, planned.tasks);
 
     NewJob& job = planned.job;
     job.name = spec.name();

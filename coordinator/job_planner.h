@@ -28,6 +28,9 @@ struct PlannerLimits {
     int max_frames = 10000;  // per job
     uint64_t max_bundle_bytes = uint64_t(1024) << 20;
     int64_t max_tasks = 1000000;  // per job, all frames
+    // Unfinished tasks of all jobs together: the queue a coordinator keeps in its
+    // database and caches, bounded whatever the number of jobs.
+    int64_t max_queued_tasks = 1000000;
 };
 
 // A planned job whose bundle sits in a staging folder until the job has an id.
@@ -41,6 +44,7 @@ class PlannedJob {
     PlannedJob(const PlannedJob&) = delete;
 
     NewJob job;
+    int64_t tasks = 0;  // of all its frames
     // Moves the bundle to <jobs>/<job_id>/bundle.
     void Adopt(const std::string& jobs_dir, const std::string& job_id);
 
@@ -59,6 +63,10 @@ class JobPlanner {
     // loaded sandboxed in its bundle, SceneLoadOptions), NOT_FOUND (a blob never uploaded,
     // naming its path and hash), RESOURCE_EXHAUSTED (over a limit).
     PlannedJob Plan(const v1::JobSpec& spec) const;
+
+    // RESOURCE_EXHAUSTED if `job`'s tasks on top of the `queued` unfinished tasks of the
+    // farm would exceed max_queued_tasks.
+    void CheckQueuedTasks(const PlannedJob& job, int64_t queued) const;
 
     const std::string& JobsDir() const { return jobs_dir_; }
 

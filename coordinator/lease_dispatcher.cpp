@@ -6,7 +6,8 @@
 
 namespace tessera {
 
-LeaseDispatcher::LeaseDispatcher(Scheduler& scheduler) : scheduler_(scheduler) {}
+LeaseDispatcher::LeaseDispatcher(Scheduler& scheduler, DiskSpaceMonitor* space)
+    : scheduler_(scheduler), space_(space) {}
 
 LeaseDispatcher::~LeaseDispatcher() { Stop(); }
 
@@ -28,7 +29,7 @@ uint64_t LeaseDispatcher::Wait(const std::string& worker_id, int wait_ms, Callba
     }
     std::optional<LeasedTask> task;
     try {
-        task = scheduler_.TryLease(worker_id);
+        task = Lease(worker_id);
     } catch (...) {
         done(std::nullopt, std::current_exception());
         return 0;
@@ -125,6 +126,17 @@ void LeaseDispatcher::Run() {
     }
 }
 
+std::optional<LeasedTask> LeaseDispatcher::Lease(const std::string& worker_id) {
+    if (space_ && space_->OutOfSpace()) return std::nullopt;
+    try {
+        return scheduler_.TryLease(worker_id);
+    } catch (const NoSpaceError& e) {
+        if (!space_) throw;
+        space_->Report(e);
+        return std::nullopt;
+    }
+}
+
 void LeaseDispatcher::Serve() {
     while (true) {
         std::string worker_id;
@@ -138,7 +150,7 @@ void LeaseDispatcher::Serve() {
         std::optional<LeasedTask> task;
         std::exception_ptr error;
         try {
-            task = scheduler_.TryLease(worker_id);
+            task = Lease(worker_id);
         } catch (...) {
             error = std::current_exception();
         }

@@ -4,6 +4,11 @@
 // pending task becomes a waiter (a callback); one dispatcher thread hands tasks to
 // waiters, oldest first, whenever work may have appeared (submission, re-queue,
 // expiry: Notify()), and answers "no task" to waiters whose wait ran out.
+//
+// While the farm is out of space (DiskSpaceMonitor) nothing is leased: a task could not
+// be recorded, nor its result stored. Requests wait as if there were no work, and a
+// lease that fails for lack of space is reported and answered the same way; Notify()
+// once space returns.
 
 #include <chrono>
 #include <condition_variable>
@@ -16,6 +21,7 @@
 #include <string>
 #include <thread>
 
+#include "disk_space.h"
 #include "scheduler.h"
 
 namespace tessera {
@@ -27,7 +33,8 @@ class LeaseDispatcher {
     using Callback = std::function<void(std::optional<LeasedTask>, std::exception_ptr)>;
     static constexpr int kMaxWaitMs = 30000;
 
-    explicit LeaseDispatcher(Scheduler& scheduler);
+    // `space`, if given, pauses leasing while the farm is out of space.
+    explicit LeaseDispatcher(Scheduler& scheduler, DiskSpaceMonitor* space = nullptr);
     ~LeaseDispatcher();
 
     void Start();
@@ -49,10 +56,14 @@ class LeaseDispatcher {
         Callback done;
     };
     void Run();
+    // TryLease unless the farm is out of space; a lease refused for lack of space is
+    // reported and is no task.
+    std::optional<LeasedTask> Lease(const std::string& worker_id);
     // Leases for waiters, oldest first, while there is work. Called without the lock.
     void Serve();
 
     Scheduler& scheduler_;
+    DiskSpaceMonitor* space_;
     std::mutex mu_;
     std::condition_variable cv_;
     std::list<Waiter> waiters_;

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include "server.h"
+#include "state_dir.h"
 
 int main(int argc, char** argv) {
     tessera::BlockShutdownSignals();
@@ -21,6 +22,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--state", c.state_dir, "State directory (database, blobs, bundles)")
         ->required();
+    bool init_state = false;
+    app.add_flag("--init", init_state,
+                 "Start a new, empty state even though --state holds files but no database");
     app.add_option("--output", c.output_dir, "Where frames are written: <output>/<job>/...")
         ->required();
     app.add_option("--lease-ms", c.scheduler.lease_ms, "Task lease duration in ms")
@@ -53,7 +57,46 @@ int main(int argc, char** argv) {
     app.add_option("--max-tasks", c.limits.max_tasks, "Most tasks per job (all frames)")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    app.add_option("--max-queued-tasks", c.limits.max_queued_tasks,
+                   "Most unfinished tasks of all jobs together (a submission beyond: refused)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+    app.add_option("--max-uploads", c.resources.max_uploads, "Blob uploads open at once")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    app.add_option("--upload-idle-ms", c.resources.upload_idle_ms,
+                   "An upload that sends nothing for this long is cancelled")
+        ->capture_default_str()
+        ->check(CLI::Range(100, 24 * 3600 * 1000));
+    app.add_option("--max-streams", c.resources.max_streams,
+                   "Blob and frame downloads open at once")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    app.add_option("--max-watchers", c.resources.max_watchers, "Job watches open at once")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000));
+    app.add_option("--max-lease-waits", c.resources.max_lease_waits,
+                   "Workers' task long polls waiting at once")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000000));
     app.add_option("--port-file", o.port_file, "Write the bound port here once serving");
+    tessera::ListenSecurity& sec = o.security;
+    app.add_option("--tls-cert", sec.tls_cert_file, "PEM server certificate (chain): serve TLS")
+        ->envname("TESSERA_TLS_CERT")
+        ->check(CLI::ExistingFile);
+    app.add_option("--tls-key", sec.tls_key_file, "PEM private key of --tls-cert")
+        ->envname("TESSERA_TLS_KEY")
+        ->check(CLI::ExistingFile);
+    app.add_option("--tls-client-ca", sec.tls_client_ca_file,
+                   "PEM CA whose client certificates workers must present (mutual TLS)")
+        ->envname("TESSERA_TLS_CLIENT_CA")
+        ->check(CLI::ExistingFile);
+    app.add_option("--tokens", sec.tokens_file,
+                   "Token file: lines 'client|worker NAME TOKEN [limits]' (see tessera token)")
+        ->envname("TESSERA_TOKENS_FILE")
+        ->check(CLI::ExistingFile);
+    app.add_flag("--insecure", sec.insecure,
+                 "Allow listening off loopback without TLS or tokens (trusted networks only)");
     app.add_option("--log-level", log_level, "trace, debug, info, warn, error")
         ->capture_default_str()
         ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
@@ -62,5 +105,11 @@ int main(int argc, char** argv) {
     c.limits.max_bundle_bytes = uint64_t(max_bundle_mb) << 20;
     c.scheduler.put_aside_ms = put_aside_s * 1000;
     spdlog::set_level(spdlog::level::from_str(log_level));
+    try {
+        tessera::CheckStateDir(c.state_dir, init_state);
+    } catch (const std::exception& e) {
+        spdlog::critical("{}", e.what());
+        return 1;
+    }
     return tessera::RunServer(o);
 }

@@ -182,20 +182,22 @@ WorkerRegistration Scheduler::RegisterWorker(const std::string& name, int thread
     std::lock_guard lock(mu_);
     const int64_t now = clock_.NowMs();
     std::string shown = name.empty() ? "worker" : name;
-    // A worker that registers under the name of one that has gone silent is that worker
-    // restarted: it takes the old id (and keeps any time it was put aside for) rather than
-    // growing the workers table by a row per restart. A name still in live use gets a
-    // new id and a warning.
+    // A worker that registers under a known name is that worker restarted: it takes the
+    // old id (and keeps any time it was put aside for) rather than growing the workers
+    // table by a row per restart. This holds even when the old run was seen moments ago:
+    // a worker restarted quickly (a crash, a redeploy, a supervisor's restart) registers
+    // before its old run's leases run out, and is no second worker. The old run's leases
+    // are left to expire and are then handed to others. Names are unique per worker (the
+    // default, host-pid, is); two live processes given one name share the id, which stays
+    // safe because every lease is fenced by its own token.
     int64_t id = 0;
-    for (const auto& [known_id, w] : workers_) {
-        if (w.name != shown) continue;
-        if (now - w.last_seen_ms < options_.lease_ms) {
-            spdlog::warn("worker name '{}' is already in use by {}: names should be unique", shown,
-                         FormatWorkerId(known_id));
-        } else if (id == 0 || known_id < id) {  // the oldest, whatever the map order
-            id = known_id;
-        }
-    }
+    for (const auto& [known_id, w] : workers_)
+        if (w.name == shown && (id == 0 || known_id < id)) id = known_id;  // the oldest
+    if (id != 0 && now - workers_[id].last_seen_ms < options_.lease_ms)
+        spdlog::info(
+            "worker '{}' registered while its previous run as {} was seen {} ms ago: taken as "
+            "a restart of it (that run's leases expire within {} ms)",
+            shown, FormatWorkerId(id), now - workers_[id].last_seen_ms, options_.lease_ms);
     if (id != 0) {
         store_.UpdateWorker(id, threads, now);
         Worker& w = workers_[id];
@@ -316,6 +318,35 @@ std::vector<std::string> Scheduler::WorkersPutAside() {
 int64_t Scheduler::TimesWorkersPutAside() {
     std::lock_guard lock(mu_);
     return times_put_aside_;
+}
+
+std::vector<v1::WorkerStatus> Scheduler::ListWorkers() {
+    std::lock_guard lock(mu_);
+    const int64_t now = clock_.NowMs();
+    std::unordered_map<int64_t, int> leased;
+    for (const auto& [task_id, lease] : leases_) ++leased[lease.worker_id];
+    std::vector<v1::WorkerStatus> list;
+    for (const auto& [id, w] : workers_) {
+        v1::WorkerStatus& s = list.emplace_back();
+        s.set_worker_id(FormatWorkerId(id));
+        s.set_name(w.name);
+        s.set_threads(w.threads);
+        s.set_tasks_leased(leased[id]);
+        s.set_last_seen_unix_ms(w.last_seen_ms);
+        s.set_failures_in_a_row(w.failures_in_a_row);
+        if (w.put_aside_until_ms > now) {
+            s.set_state("put aside");
+            s.set_put_aside_until_unix_ms(w.put_aside_until_ms);
+        } else if (w.silent) {
+            s.set_state("silent");
+        } else {
+            s.set_state(leased[id] > 0 ? "busy" : "idle");
+        }
+    }
+    std::sort(list.begin(), list.end(), [](const v1::WorkerStatus& a, const v1::WorkerStatus& b) {
+        return std::tie(a.name(), a.worker_id()) < std::tie(b.name(), b.worker_id());
+    });
+    return list;
 }
 
 HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
@@ -472,7 +503,6 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
             task.job_id,
             {task.frame, task.task_index, task.attempts, worker.name, text, task.stage},
             clock_.NowMs());
-        leases_.erase(task_id);
         spdlog::warn(
             "lease {}: task {} ({} frame {} {} {}) failed on worker '{}' (failure {} of "
             "{}): {}",
@@ -491,6 +521,8 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
             events.push_back({Event::kWork, job_id, ""});
         }
         txn.Commit();
+        // Only once committed: a lease dropped from memory alone would never expire.
+        leases_.erase(task_id);
         CountWorkerFailure(wid, worker, clock_.NowMs());
     }
     Emit(events);
@@ -525,7 +557,6 @@ int Scheduler::Sweep() {
             for (int64_t task_id : due) {
                 const Lease lease = leases_[task_id];
                 store_.RequeueTask(task_id, lease.lease_id, false);
-                leases_.erase(task_id);
                 const std::string job_id = FormatJobId(lease.job_id);
                 spdlog::warn("lease {}: task {} ({}) on worker '{}' expired; re-queued",
                              lease.lease_id, task_id, job_id, WorkerName(lease.worker_id));
@@ -534,6 +565,8 @@ int Scheduler::Sweep() {
                                               WorkerName(lease.worker_id))});
             }
             txn.Commit();
+            // Only once committed: a lease dropped from memory alone would never expire.
+            for (int64_t task_id : due) leases_.erase(task_id);
             expired = static_cast<int>(due.size());
             events.push_back({Event::kWork, "", ""});
         }
@@ -651,7 +684,13 @@ v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
     s.set_height(job.settings.height);
     s.set_spp(job.settings.spp);
     s.set_leases_granted(job.leases_granted);
+    if (!IsFinished(job.state)) s.set_farm_problem(farm_problem_);
     return s;
+}
+
+void Scheduler::SetFarmProblem(const std::string& problem) {
+    std::lock_guard lock(mu_);
+    farm_problem_ = problem;
 }
 
 v1::JobStatus Scheduler::GetJob(const std::string& job_id) {

@@ -188,12 +188,17 @@ class Scheduler {
     std::vector<std::string> WorkersPutAside();
     // How many times a worker was put aside since the coordinator started.
     int64_t TimesWorkersPutAside();
+    // Every worker known since the coordinator started, by name.
+    std::vector<v1::WorkerStatus> ListWorkers();
     // Gives back a lease that never reached its worker: re-queued and not counted.
     void Release(int64_t task_id, int64_t lease_id);
     // Re-queues expired leases and notes silent workers; returns leases expired.
     int Sweep();
     // Moves the database's WAL into its main file without holding up requests.
     void Checkpoint() { store_.Checkpoint(); }
+    // What keeps the whole farm from progressing (e.g. a full disk), shown as
+    // JobStatus.farm_problem of every unfinished job; empty when nothing does.
+    void SetFarmProblem(const std::string& problem);
 
     // --- jobs
     // Plans the job's frames from job.render_settings (job.stages is filled in here);
@@ -300,6 +305,7 @@ class Scheduler {
     SchedulerListener* listener_ = nullptr;
     int64_t last_lease_id_ = 0;
     int64_t times_put_aside_ = 0;
+    std::string farm_problem_;
     std::unordered_map<int64_t, Lease> leases_;  // by task id: the outstanding leases
     std::unordered_map<int64_t, Worker> workers_;
     std::unordered_map<int64_t, std::shared_ptr<const JobInfo>> jobs_;

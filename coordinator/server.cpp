@@ -53,6 +53,23 @@ void BlockShutdownSignals() {
 }
 
 int RunServer(const ServerOptions& options) {
+    Authenticator auth;
+    std::shared_ptr<grpc::ServerCredentials> credentials;
+    try {
+        if (!options.security.tokens_file.empty())
+            auth = Authenticator::FromFile(options.security.tokens_file);
+        CheckListenSecurity(options.listen, options.security, auth.Enabled());
+        credentials = MakeServerCredentials(options.security);
+        auth.RequireWorkerCertificates(!options.security.tls_client_ca_file.empty());
+    } catch (const std::exception& e) {
+        spdlog::critical("{}", e.what());
+        return 1;
+    }
+    if (auth.Enabled())
+        spdlog::info("tokens: {} client, {} worker (from {})", auth.Count(Role::kClient),
+                     auth.Count(Role::kWorker), options.security.tokens_file);
+    else
+        spdlog::info("no tokens: every caller on {} may submit and render", options.listen);
     SystemClock clock;
     std::unique_ptr<Coordinator> coordinator;
     try {
@@ -63,13 +80,13 @@ int RunServer(const ServerOptions& options) {
         return 1;
     }
 
-    std::unique_ptr<grpc::Service> farm = MakeFarmService(*coordinator);
-    std::unique_ptr<grpc::Service> workers = MakeWorkersService(*coordinator);
-    std::unique_ptr<grpc::Service> blobs = MakeBlobStoreService(*coordinator);
+    std::unique_ptr<grpc::Service> farm = MakeFarmService(*coordinator, auth);
+    std::unique_ptr<grpc::Service> workers = MakeWorkersService(*coordinator, auth);
+    std::unique_ptr<grpc::Service> blobs = MakeBlobStoreService(*coordinator, auth);
     grpc::EnableDefaultHealthCheckService(true);
     grpc::ServerBuilder builder;
     int port = 0;
-    builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port);
+    builder.AddListeningPort(options.listen, credentials, &port);
     builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
     builder.SetMaxSendMessageSize(kMaxMessageBytes);
     builder.RegisterService(farm.get());
@@ -87,9 +104,12 @@ int RunServer(const ServerOptions& options) {
     }
     if (grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService())
         health->SetServingStatus(true);
-    spdlog::info("tessera-coordinator listening on {} (port {}); state {}, output {}",
-                 options.listen, port, options.coordinator.state_dir,
-                 options.coordinator.output_dir);
+    spdlog::info("tessera-coordinator listening on {} (port {}, {}); state {}, output {}",
+                 options.listen, port,
+                 options.security.tls_cert_file.empty()
+                     ? "plaintext"
+                     : (options.security.tls_client_ca_file.empty() ? "TLS" : "mutual TLS"),
+                 options.coordinator.state_dir, options.coordinator.output_dir);
     if (!options.port_file.empty()) {
         try {
             WritePortFile(options.port_file, port);

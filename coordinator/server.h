@@ -5,13 +5,15 @@
 
 #include <string>
 
+#include "auth.h"
 #include "coordinator.h"
 
 namespace tessera {
 
 struct ServerOptions {
     std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
-    std::string port_file;  // if set, receives the bound port (atomically) once serving
+    std::string port_file;    // if set, receives the bound port (atomically) once serving
+    ListenSecurity security;  // TLS files, the token file; see auth.h
     CoordinatorOptions coordinator;
 };
 
@@ -20,7 +22,8 @@ struct ServerOptions {
 void BlockShutdownSignals();
 
 // Serves until SIGTERM/SIGINT; returns the process exit code (non-zero, with a logged
-// reason, if the state cannot be opened or the address cannot be bound).
+// reason, if the state cannot be opened, the address cannot be bound, or the security
+// settings are unsafe or unreadable: see CheckListenSecurity).
 int RunServer(const ServerOptions& options);
 
 }  // namespace tessera

@@ -2,12 +2,18 @@
 
 #include <spdlog/spdlog.h>
 
+#include <climits>
+#include <cstdint>
+#include <filesystem>
 #include <mutex>
 #include <optional>
 
 #include "file_stream_reactor.h"
 #include "grpc_status.h"
+#include "io/file_bytes.h"
+#include "io/image_io.h"
 #include "services.h"
+#include "sha256.h"
 #include "tessera/v1/tessera.grpc.pb.h"
 #include "work_queue.h"
 
@@ -21,7 +27,9 @@ constexpr size_t kMaxMergedMessageBytes = 4096;
 // replaces an older one (their messages are joined), so a slow client gets fresh state.
 class WatchReactor final : public grpc::ServerWriteReactor<v1::JobEvent>, public JobWatcher {
   public:
-    WatchReactor(WatchHub& hub, const std::string& job_id) : hub_(hub) {
+    // Holds `slot` (of the coordinator's watch limit) until done.
+    WatchReactor(WatchHub& hub, const std::string& job_id, ConcurrencyLimit::Slot slot)
+        : hub_(hub), slot_(std::move(slot)) {
         try {
             hub_.Watch(job_id, this);
         } catch (...) {
@@ -99,6 +107,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::JobEvent>, public
     }
 
     WatchHub& hub_;
+    ConcurrencyLimit::Slot slot_;
     std::mutex mu_;
     v1::JobEvent current_;
     std::optional<v1::JobEvent> pending_;
@@ -112,18 +121,25 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::JobEvent>, public
 
 class FarmService final : public v1::Farm::CallbackService {
   public:
-    explicit FarmService(Coordinator& c) : c_(c) {}
+    FarmService(Coordinator& c, const Authenticator& auth) : c_(c), auth_(auth) {}
 
     grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx,
                                         const v1::SubmitJobRequest* req,
                                         v1::SubmitJobResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
         // Materializing the bundle and loading the scene take time: not on this thread.
-        submissions_.Post([this, req, resp, reactor] {
-            grpc::Status status = Guarded([&] { resp->set_job_id(c_.SubmitJob(req->spec())); });
-            if (!status.ok())
-                spdlog::info("job submission rejected: {} {}", int(status.error_code()),
-                             status.error_message());
+        submissions_.Post([this, req, resp, reactor, caller] {
+            grpc::Status status =
+                Guarded([&] { resp->set_job_id(c_.SubmitJob(req->spec(), caller.limits)); });
+            if (status.ok()) {
+                LogMutatingCall(
+                    caller, "job " + resp->job_id() + " ('" + req->spec().name() + "') submitted");
+            } else {
+                spdlog::info("job submission by '{}' from {} rejected: {} {}", caller.name,
+                             caller.peer, int(status.error_code()), status.error_message());
+            }
             reactor->Finish(status);
         });
         return reactor;
@@ -132,6 +148,8 @@ class FarmService final : public v1::Farm::CallbackService {
     grpc::ServerUnaryReactor* GetJob(grpc::CallbackServerContext* ctx, const v1::GetJobRequest* req,
                                      v1::JobStatus* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
         reactor->Finish(Guarded([&] { *resp = c_.GetJob(req->job_id()); }));
         return reactor;
     }
@@ -139,6 +157,8 @@ class FarmService final : public v1::Farm::CallbackService {
     grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx, const v1::ListJobsRequest*,
                                        v1::ListJobsResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
         reactor->Finish(Guarded([&] {
             for (v1::JobStatus& s : c_.ListJobs()) *resp->add_jobs() = std::move(s);
         }));
@@ -149,32 +169,86 @@ class FarmService final : public v1::Farm::CallbackService {
                                         const v1::CancelJobRequest* req,
                                         v1::CancelJobResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "cancel of job '" + req->job_id() + "'");
         reactor->Finish(Guarded([&] { *resp->mutable_status() = c_.CancelJob(req->job_id()); }));
         return reactor;
     }
 
-    grpc::ServerWriteReactor<v1::JobEvent>* WatchJob(grpc::CallbackServerContext*,
+    grpc::ServerWriteReactor<v1::JobEvent>* WatchJob(grpc::CallbackServerContext* ctx,
                                                      const v1::WatchJobRequest* req) override {
-        return new WatchReactor(c_.Watches(), req->job_id());
+        Caller caller;
+        if (grpc::Status s = auth_.Check(*ctx, Role::kClient, &caller); !s.ok())
+            return new RefusedWriter<v1::JobEvent>(s);
+        ConcurrencyLimit::Slot slot;
+        if (grpc::Status s = Guarded([&] { slot = c_.Gates().watchers.Acquire(); }); !s.ok())
+            return new RefusedWriter<v1::JobEvent>(s);
+        return new WatchReactor(c_.Watches(), req->job_id(), std::move(slot));
     }
 
     grpc::ServerWriteReactor<v1::FileChunk>* DownloadFrame(
-        grpc::CallbackServerContext*, const v1::DownloadFrameRequest* req) override {
+        grpc::CallbackServerContext* ctx, const v1::DownloadFrameRequest* req) override {
+        Caller caller;
+        if (grpc::Status s = auth_.Check(*ctx, Role::kClient, &caller); !s.ok())
+            return new RefusedWriter<v1::FileChunk>(s);
         std::string path;
-        grpc::Status status =
-            Guarded([&] { path = c_.FrameFile(req->job_id(), req->frame(), req->preview()); });
-        return new FileStreamReactor<v1::FileChunk>(path, status);
+        ConcurrencyLimit::Slot slot;
+        grpc::Status status = Guarded([&] {
+            slot = c_.Gates().streams.Acquire();
+            path = c_.FrameFile(req->job_id(), req->frame(), req->preview());
+        });
+        // Before streaming: the file must still decode (else DATA_LOSS: it was damaged on
+        // this disk and is not sent), and its SHA-256 goes in the trailing metadata
+        // ("tessera-sha256", lowercase hex) so that the client can refuse a copy that
+        // arrived damaged. A frame file is replaced only by an atomic rename, so what is
+        // checked here is what the stream then sends, unless the frame is re-rendered
+        // meanwhile (the client then sees a mismatch and fetches again).
+        if (status.ok()) {
+            constexpr uint64_t kMaxFrameFileBytes = uint64_t(1) << 36;
+            const std::string shown = "frame " + std::to_string(req->frame()) + " of job '" +
+                                      req->job_id() + "' (" +
+                                      std::filesystem::path(path).filename().string() + ")";
+            try {
+                const std::string bytes = ReadFileBytes(path, kMaxFrameFileBytes, shown);
+                ImageDecodeLimits limits;
+                limits.max_pixels = UINT64_MAX;
+                limits.max_channels = INT_MAX;
+                DecodeImage(bytes, path, limits);
+                ctx->AddTrailingMetadata("tessera-sha256", Sha256Hex(bytes));
+            } catch (const std::exception& e) {
+                spdlog::error("{} is damaged on disk, not sent: {}", shown, e.what());
+                status = grpc::Status(
+                    grpc::StatusCode::DATA_LOSS,
+                    shown + " is damaged on the coordinator and was not sent; render it again");
+            }
+        }
+        return new FileStreamReactor<v1::FileChunk>(path, status, std::move(slot));
+    }
+
+    grpc::ServerUnaryReactor* ListWorkers(grpc::CallbackServerContext* ctx,
+                                          const v1::ListWorkersRequest*,
+                                          v1::ListWorkersResponse* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        reactor->Finish(Guarded([&] {
+            for (v1::WorkerStatus& w : c_.ListWorkers()) *resp->add_workers() = std::move(w);
+        }));
+        return reactor;
     }
 
   private:
     Coordinator& c_;
+    const Authenticator& auth_;
     WorkQueue submissions_{2};
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> MakeFarmService(Coordinator& coordinator) {
-    return std::make_unique<FarmService>(coordinator);
+std::unique_ptr<grpc::Service> MakeFarmService(Coordinator& coordinator,
+                                               const Authenticator& auth) {
+    return std::make_unique<FarmService>(coordinator, auth);
 }
 
 }  // namespace tessera

@@ -74,12 +74,15 @@ class LeaseReactor final : public grpc::ServerUnaryReactor {
 
 class WorkersService final : public v1::Workers::CallbackService {
   public:
-    explicit WorkersService(Coordinator& c) : c_(c) {}
+    WorkersService(Coordinator& c, const Authenticator& auth) : c_(c), auth_(auth) {}
 
     grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx,
                                        const v1::RegisterRequest* req,
                                        v1::RegisterResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kWorker, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "registration of worker '" + req->name() + "'");
         reactor->Finish(Guarded([&] {
             WorkerRegistration r = c_.Register(req->name(), req->threads());
             resp->set_worker_id(r.worker_id);
@@ -89,9 +92,15 @@ class WorkersService final : public v1::Workers::CallbackService {
         return reactor;
     }
 
-    grpc::ServerUnaryReactor* LeaseTask(grpc::CallbackServerContext*,
+    grpc::ServerUnaryReactor* LeaseTask(grpc::CallbackServerContext* ctx,
                                         const v1::LeaseTaskRequest* req,
                                         v1::LeaseTaskResponse* resp) override {
+        Caller caller;
+        if (grpc::Status s = auth_.Check(*ctx, Role::kWorker, &caller); !s.ok()) {
+            grpc::ServerUnaryReactor* refused = ctx->DefaultReactor();
+            refused->Finish(s);
+            return refused;
+        }
         return new LeaseReactor(c_, *req, resp);
     }
 
@@ -99,6 +108,11 @@ class WorkersService final : public v1::Workers::CallbackService {
                                         const v1::HeartbeatRequest* req,
                                         v1::HeartbeatResponse* resp) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kWorker, reactor, &caller)) return reactor;
+        // A lease renewal: logged at debug only, it comes every few seconds per task.
+        spdlog::debug("heartbeat for task {} by '{}' from {}", req->task_id(), caller.name,
+                      caller.peer);
         reactor->Finish(LeaseGuarded([&] {
             HeartbeatReply r =
                 c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token());
@@ -112,6 +126,10 @@ class WorkersService final : public v1::Workers::CallbackService {
                                            const v1::CompleteTaskRequest* req,
                                            v1::CompleteTaskResponse*) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kWorker, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "result for task " + std::to_string(req->task_id()) + " (lease " +
+                                    std::to_string(req->lease_id()) + ")");
         reactor->Finish(LeaseGuarded([&] {
             c_.CompleteTask(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
                             req->result_hash(), req->result());
@@ -123,6 +141,10 @@ class WorkersService final : public v1::Workers::CallbackService {
                                        const v1::FailTaskRequest* req,
                                        v1::FailTaskResponse*) override {
         grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kWorker, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "failure of task " + std::to_string(req->task_id()) + " (lease " +
+                                    std::to_string(req->lease_id()) + ")");
         reactor->Finish(LeaseGuarded([&] {
             c_.FailTask(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
                         req->message());
@@ -132,12 +154,14 @@ class WorkersService final : public v1::Workers::CallbackService {
 
   private:
     Coordinator& c_;
+    const Authenticator& auth_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> MakeWorkersService(Coordinator& coordinator) {
-    return std::make_unique<WorkersService>(coordinator);
+std::unique_ptr<grpc::Service> MakeWorkersService(Coordinator& coordinator,
+                                                  const Authenticator& auth) {
+    return std::make_unique<WorkersService>(coordinator, auth);
 }
 
 }  // namespace tessera

@@ -8,12 +8,18 @@
 
 #include <memory>
 
+#include "auth.h"
 #include "coordinator.h"
 
 namespace tessera {
 
-std::unique_ptr<grpc::Service> MakeFarmService(Coordinator& coordinator);
-std::unique_ptr<grpc::Service> MakeWorkersService(Coordinator& coordinator);
-std::unique_ptr<grpc::Service> MakeBlobStoreService(Coordinator& coordinator);
+// Each call is checked by `auth` (see auth.h) before it reaches the coordinator; the
+// services keep a reference to it.
+std::unique_ptr<grpc::Service> MakeFarmService(Coordinator& coordinator,
+                                               const Authenticator& auth = OpenAccess());
+std::unique_ptr<grpc::Service> MakeWorkersService(Coordinator& coordinator,
+                                                  const Authenticator& auth = OpenAccess());
+std::unique_ptr<grpc::Service> MakeBlobStoreService(Coordinator& coordinator,
+                                                    const Authenticator& auth = OpenAccess());
 
 }  // namespace tessera

@@ -3,7 +3,25 @@
 #include <stdexcept>
 #include <utility>
 
+#include "disk_space.h"
+
 namespace tessera {
+
+namespace {
+
+// A full disk (SQLITE_FULL, or an I/O error whose cause is ENOSPC or EDQUOT) is
+// NoSpaceError naming the database file; anything else std::runtime_error.
+[[noreturn]] void ThrowSqliteError(sqlite3* db, int rc, const std::string& message) {
+    const int primary = rc & 0xff;
+    if (primary == SQLITE_FULL ||
+        (primary == SQLITE_IOERR && IsNoSpaceErrno(sqlite3_system_errno(db)))) {
+        const char* file = sqlite3_db_filename(db, "main");
+        ThrowNoSpace(file && *file ? file : "the database", "SQLite: " + message);
+    }
+    throw std::runtime_error("SQLite: " + message);
+}
+
+}  // namespace
 
 SqliteStatement::SqliteStatement(sqlite3* db, std::string_view sql) : db_(db) {
     int rc = sqlite3_prepare_v3(db, sql.data(), static_cast<int>(sql.size()),
@@ -28,7 +46,7 @@ SqliteStatement& SqliteStatement::operator=(SqliteStatement&& other) noexcept {
 }
 
 void SqliteStatement::Check(int rc) const {
-    if (rc != SQLITE_OK) throw std::runtime_error(std::string("SQLite: ") + sqlite3_errmsg(db_));
+    if (rc != SQLITE_OK) ThrowSqliteError(db_, rc, sqlite3_errmsg(db_));
 }
 
 void SqliteStatement::Reset() { sqlite3_reset(stmt_); }
@@ -53,8 +71,10 @@ bool SqliteStatement::Step() {
         return false;
     }
     std::string message = sqlite3_errmsg(db_);
+    const int system_errno = sqlite3_system_errno(db_);
     sqlite3_reset(stmt_);
-    throw std::runtime_error("SQLite: " + message);
+    if ((rc & 0xff) == SQLITE_IOERR && IsNoSpaceErrno(system_errno)) rc = SQLITE_FULL;
+    ThrowSqliteError(db_, rc, message);
 }
 
 void SqliteStatement::Run() {
@@ -100,10 +120,10 @@ SqliteDb::~SqliteDb() { sqlite3_close_v2(db_); }
 
 void SqliteDb::Exec(const std::string& sql) {
     char* error = nullptr;
-    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error) != SQLITE_OK) {
+    if (const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error); rc != SQLITE_OK) {
         std::string message = error ? error : sqlite3_errmsg(db_);
         sqlite3_free(error);
-        throw std::runtime_error("SQLite: " + message + " (in: " + sql.substr(0, 80) + ")");
+        ThrowSqliteError(db_, rc, message + " (in: " + sql.substr(0, 80) + ")");
     }
 }
 

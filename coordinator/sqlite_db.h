@@ -2,7 +2,9 @@
 
 // A thin RAII layer over the SQLite C API: one connection, prepared statements with
 // typed binding, and a transaction guard. Errors throw std::runtime_error with
-// SQLite's message. Not thread-safe: the owner serialises access.
+// SQLite's message, except a full disk (SQLITE_FULL, or an I/O error caused by ENOSPC or
+// EDQUOT): NoSpaceError naming the database file (disk_space.h). Not thread-safe: the
+// owner serialises access.
 
 #include <sqlite3.h>
 

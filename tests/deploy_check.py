@@ -9,7 +9,8 @@ Checks, without Docker, a cluster, Slurm or systemd running:
     exactly the manifests beside it, workloads are internally consistent (selectors,
     volumes, probes, resources, known field names); the worker Deployment has replicas;
     the coordinator has a PersistentVolumeClaim under --state and --output, one replica,
-    gRPC probes on its port and a Service that selects it;
+    probes on its port (gRPC on a plaintext port, TCP or a command on a TLS one: the
+    gRPC probe cannot do TLS) and a Service that selects it;
   - docker-compose.yml: a coordinator with volumes and a health check, workers with
     replicas, pointing at the coordinator's service and port;
   - the Dockerfile's build stage COPYs and RUNs deploy/setup.sh and installs nothing
@@ -19,6 +20,14 @@ Checks, without Docker, a cluster, Slurm or systemd running:
   - the Slurm script and the systemd units start binaries that exist with flags that
     exist (from the built binaries' --help when ROOT/build has them, else the
     documented flags), the values they need, and the hardening and stop settings;
+  - security, in Compose, Kubernetes, systemd, Slurm and the image's default command:
+    every coordinator listening off loopback has --tls-cert, --tls-key and --tokens,
+    none has --insecure; every worker and CLI gets --tls-ca and --token-file (or their
+    variables); those files come from Compose secrets (deploy/secrets/), read-only
+    Kubernetes Secret volumes or systemd credentials; no file under deploy/ holds a PEM
+    block, a token-like hex string, a --token flag or a TESSERA_TOKEN value, no manifest
+    a Secret with data; deploy/secrets/ is git- and docker-ignored and made by
+    deploy/make-secrets.sh;
   - where installed: bash -n, shellcheck, systemd-analyze verify, kubectl kustomize.
 
 Prints one line per check and closes with "N passed, N failed, N skipped"; exits 1 if
@@ -27,6 +36,7 @@ checks to notice each one.
 """
 
 import argparse
+import copy
 import json
 import os
 import re
@@ -49,12 +59,14 @@ PROGRAMS = {
     "tessera-coordinator": {
         "dir": "coordinator",
         "flags": {"--listen", "--state", "--output", "--lease-ms", "--max-attempts",
-                  "--port-file"},
+                  "--port-file", "--tls-cert", "--tls-key", "--tls-client-ca", "--tokens",
+                  "--insecure"},
         "required": {"--listen", "--state", "--output"},
     },
     "tessera-worker": {
         "dir": "worker",
-        "flags": {"--coordinator", "--threads", "--name", "--cache"},
+        "flags": {"--coordinator", "--threads", "--name", "--cache", "--tls-ca",
+                  "--tls-cert", "--tls-key", "--tls-server-name", "--token-file"},
         "required": {"--coordinator"},
     },
     "tessera": {"dir": "cli", "flags": None, "required": set()},
@@ -68,8 +80,8 @@ ENTRYPOINT_ALIASES = {
 # Packages the image's runtime stage may install by name although setup.sh does not:
 # tini runs as PID 1 to forward SIGTERM and reap children.
 RUNTIME_ONLY_PACKAGES = {"tini"}
-# CMake subdirectories the image does not need (tests and benchmarks are off).
-CMAKE_DIRS_NOT_BUILT = {"tests", "bench"}
+# CMake subdirectories the image does not need (tests, benchmarks and fuzzers are off).
+CMAKE_DIRS_NOT_BUILT = {"tests", "bench", "fuzz"}
 
 # Field names Kubernetes accepts at the levels the manifests use: a misspelt field is
 # silently dropped by a lenient apply, so it is an error here.
@@ -187,8 +199,17 @@ def yaml_files(root):
     return found
 
 
+_YAML_CACHE = {}
+
+
 def load_yaml(path):
-    return [d for d in yaml.safe_load_all(read(path)) if d is not None]
+    """The documents of a YAML file; parsed once per content (the self-test reads the
+    same files dozens of times), a fresh copy each call."""
+    text = read(path)
+    if text not in _YAML_CACHE:
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+        _YAML_CACHE[text] = [d for d in yaml.load_all(text, Loader=loader) if d is not None]
+    return copy.deepcopy(_YAML_CACHE[text])
 
 
 def setup_packages(root):
@@ -324,6 +345,8 @@ def top_level_subdirectories(root):
 # ---------------------------------------------------------------------------------
 
 FLAG_RE = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
+# Flags that take no value.
+SWITCHES = {"--insecure", "--init", "--verbose"}
 
 
 def known_flags(root, build_dir):
@@ -363,7 +386,7 @@ def check_invocation(program, words, flags, where):
             expect(name in allowed,
                    f"{where}: {program} has no flag {name} (flags from {source}: "
                    f"{' '.join(sorted(allowed))})")
-            if "=" not in w:
+            if "=" not in w and name not in SWITCHES:
                 expect(i + 1 < len(words) and not words[i + 1].startswith("--"),
                        f"{where}: {name} has no value")
                 i += 1
@@ -564,16 +587,33 @@ def check_k8s_coordinator(root):
         expect(m is not None, f"{where}: {flag} {value} is on no volume")
         expect(m["name"] in claims,
                f"{where}: {flag} {value} is on volume {m['name']}, not a PersistentVolumeClaim")
-    # Probes: gRPC health checks on the listening port.
+    # Probes on the listening port: gRPC health checks on a plaintext port; on a TLS port
+    # (Kubernetes' gRPC probe cannot do TLS) a TCP connect or a command.
     port = listen_port(words)
     container_ports = {p.get("containerPort") for p in c.get("ports") or []}
     expect(port in container_ports, f"{where}: --listen port {port} is not a containerPort")
-    for probe in ("readinessProbe", "livenessProbe"):
-        grpc = (c.get(probe) or {}).get("grpc")
-        expect(grpc is not None, f"{where}: no gRPC {probe}")
-        expect(grpc.get("port") == port,
-               f"{where}: {probe} checks port {grpc.get('port')}, "
-               f"the coordinator listens on {port}")
+    named_ports = {p.get("name"): p.get("containerPort") for p in c.get("ports") or []}
+    tls = "--tls-cert" in words
+    for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
+        spec_ = c.get(probe)
+        if spec_ is None:
+            expect(probe == "startupProbe", f"{where}: no {probe}")
+            continue
+        if tls:
+            expect("grpc" not in spec_,
+                   f"{where}: {probe} is a gRPC probe, which cannot speak TLS to a coordinator "
+                   "serving --tls-cert (use tcpSocket or exec)")
+            kind = "tcpSocket" if "tcpSocket" in spec_ else "exec" if "exec" in spec_ else None
+            expect(kind, f"{where}: {probe} is neither tcpSocket nor exec")
+            if kind == "exec":
+                continue
+            checked = spec_[kind].get("port")
+        else:
+            expect("grpc" in spec_, f"{where}: no gRPC {probe}")
+            checked = spec_["grpc"].get("port")
+        checked = named_ports.get(checked, checked)
+        expect(checked == port,
+               f"{where}: {probe} checks port {checked}, the coordinator listens on {port}")
     # The Service.
     labels = spec["template"]["metadata"]["labels"]
     services = [doc for _, doc in kubernetes_objects(root) if doc.get("kind") == "Service"
@@ -980,6 +1020,8 @@ def check_systemd_unit(root, name, flags):
            f"no example of EnvironmentFile {' '.join(sorted(examples))} in deploy/systemd")
     provided = {"STATE_DIRECTORY", "CACHE_DIRECTORY", "RUNTIME_DIRECTORY", "LOGS_DIRECTORY",
                 "CONFIGURATION_DIRECTORY"}
+    if any(k.startswith("LoadCredential") for k in keys):
+        provided.add("CREDENTIALS_DIRECTORY")
     used = set(re.findall(r"\$\{?(\w+)", exec_start[0]))
     undefined = used - defined - provided
     expect(not undefined, f"ExecStart uses {' '.join(sorted(undefined))}, defined nowhere")
@@ -1012,7 +1054,7 @@ def check_shellcheck(root):
     if not tool:
         raise Skipped("shellcheck is not installed")
     scripts = [os.path.join(root, "deploy", p) for p in
-               ("setup.sh", "docker-entrypoint.sh", "runtime-packages.sh",
+               ("setup.sh", "docker-entrypoint.sh", "runtime-packages.sh", "make-secrets.sh",
                 os.path.join("slurm", "tessera-workers.sbatch"))]
     scripts = [s for s in scripts if os.path.exists(s)]
     out = subprocess.run([tool, "-S", "warning"] + scripts, capture_output=True, text=True,
@@ -1033,10 +1075,315 @@ def check_kustomize(root):
 
 
 # ---------------------------------------------------------------------------------
+# Security: TLS, tokens and where the secrets come from
+# ---------------------------------------------------------------------------------
 
-def run_all(root, build_dir, external, quiet=False):
+# Flags (and the variables that stand in for them) naming files with secrets or trust
+# anchors; each must come from the platform's secret store.
+SECRET_FILE_FLAGS = ("--tls-cert", "--tls-key", "--tls-client-ca", "--tokens", "--tls-ca",
+                     "--token-file")
+SECRET_FILE_VARIABLES = {"TESSERA_TLS_CA": "--tls-ca", "TESSERA_TLS_CERT": "--tls-cert",
+                         "TESSERA_TLS_KEY": "--tls-key", "TESSERA_TOKEN_FILE": "--token-file",
+                         "TESSERA_TOKENS_FILE": "--tokens",
+                         "TESSERA_TLS_CLIENT_CA": "--tls-client-ca"}
+# What a coordinator needs to listen off loopback, and what its callers need.
+COORDINATOR_SECURITY = ("--tls-cert", "--tls-key", "--tokens")
+CALLER_SECURITY = {"--tls-ca": "TESSERA_TLS_CA", "--token-file": "TESSERA_TOKEN_FILE"}
+# Where the deployments keep generated secrets (git- and docker-ignored).
+SECRETS_FOLDER = "deploy/secrets"
+
+
+def is_loopback(listen):
+    """Mirrors the coordinator's IsLoopbackAddress: unix sockets, localhost, ::1, 127/8."""
+    if listen.startswith(("unix:", "unix-abstract:")):
+        return True
+    host = listen[7:] if listen.startswith("dns:///") else listen
+    if host.startswith("["):
+        host = host[1:host.find("]")] if "]" in host else host
+    elif host.count(":") == 1:
+        host = host.rsplit(":", 1)[0]
+    host = host.lower()
+    return host in ("localhost", "::1") or re.fullmatch(r"127(\.\d{1,3}){3}", host) is not None
+
+
+class Invocation:
+    """One place a deployment starts a program: its arguments, the environment it gets,
+    and how a file path given to it is provided (None: fine, else why not)."""
+
+    def __init__(self, where, program, words, env=None, source=None, listens=None):
+        self.where, self.program, self.words = where, program, words
+        self.env = env or {}
+        self.source = source or (lambda path: None)
+        self.listens = listens  # possible --listen values (None: the flag's own)
+
+    def value(self, flag):
+        v = flag_value(self.words, flag)
+        if v is None and flag in SECRET_FILE_VARIABLES.values():
+            names = [k for k, f in SECRET_FILE_VARIABLES.items() if f == flag]
+            v = next((self.env[n] for n in names if self.env.get(n)), None)
+        return v
+
+
+def compose_invocations(root):
+    doc, services = compose_services(root)
+    declared = doc.get("secrets") or {}
+    found = []
+    for name, svc in services.items():
+        entry = svc.get("entrypoint") or []
+        entry = shlex.split(entry) if isinstance(entry, str) else [str(a) for a in entry]
+        entry = [a for a in entry if os.path.basename(a) not in ("tini", "--")]
+        program, words = program_of(entry + compose_argv(svc)) if entry else (None, [])
+        if not program:
+            program, words = program_of(compose_argv(svc))
+        if program not in PROGRAMS:
+            continue
+        env = svc.get("environment") or {}
+        if isinstance(env, list):
+            env = dict(str(e).split("=", 1) if "=" in str(e) else (str(e), "") for e in env)
+        env = {str(k): str(v) for k, v in env.items()}
+        mounted = {}
+        for s in svc.get("secrets") or []:
+            if isinstance(s, str):
+                mounted["/run/secrets/" + s] = s
+            else:
+                target = s.get("target", s.get("source"))
+                target = target if target.startswith("/") else "/run/secrets/" + target
+                mounted[target] = s.get("source")
+
+        def source(path, mounted=mounted, name=name):
+            secret = mounted.get(path)
+            if secret is None:
+                return (f"{path} is not one of service {name}'s Compose secrets "
+                        f"({' '.join(sorted(mounted)) or 'none'})")
+            spec = declared.get(secret)
+            if not isinstance(spec, dict) or "file" not in spec:
+                return f"secret {secret} is not declared with file: in the top-level secrets"
+            where = os.path.normpath(os.path.join("deploy", spec["file"]))
+            if not (where + "/").startswith(SECRETS_FOLDER + "/"):
+                return f"secret {secret} is read from {where}, outside {SECRETS_FOLDER}/"
+            return None
+
+        found.append(Invocation(f"docker-compose.yml service {name}", program, words, env,
+                                source))
+    return found
+
+
+def k8s_invocations(root):
+    found = []
+    for path, d in workloads(root):
+        pod = d["spec"]["template"]["spec"]
+        volumes = {v.get("name"): v for v in pod.get("volumes") or []}
+        for c in pod.get("containers") or []:
+            program, words = program_of((c.get("command") or []) + (c.get("args") or []))
+            if program not in PROGRAMS:
+                continue
+            env = {e.get("name"): str(e.get("value", "")) for e in c.get("env") or []}
+            mounts = c.get("volumeMounts") or []
+
+            def source(p, mounts=mounts, volumes=volumes):
+                m = mount_for(p, mounts)
+                if m is None:
+                    return f"{p} is on no volume"
+                v = volumes.get(m["name"]) or {}
+                secret = "secret" in v or any("secret" in s for s in
+                                              (v.get("projected") or {}).get("sources") or [])
+                if not secret:
+                    return f"{p} is on volume {m['name']}, which is not a Secret"
+                if not m.get("readOnly"):
+                    return f"the Secret volume {m['name']} is not mounted readOnly"
+                return None
+
+            found.append(Invocation(f"{path} {d['kind']}/{d['metadata']['name']} container "
+                                    f"{c.get('name')}", program, words, env, source))
+    return found
+
+
+def unit_environment(root, service):
+    """Every value each variable may take: Environment= defaults and the shipped
+    example environment files."""
+    env = {}
+    for kk, value in service:
+        if kk == "Environment":
+            for w in shlex.split(value):
+                k, _, v = w.partition("=")
+                env.setdefault(k, []).append(v)
+        elif kk == "EnvironmentFile":
+            shipped = os.path.join(root, "deploy", "systemd",
+                                   os.path.basename(value.lstrip("-")).replace("-%i", ""))
+            if os.path.exists(shipped):
+                for k, v in re.findall(r"^\s*(\w+)=(.*)$", read(shipped), re.M):
+                    env.setdefault(k, []).append(v.strip().strip('"'))
+    return env
+
+
+def systemd_invocations(root):
+    found = []
+    for name in ("tessera-coordinator.service", "tessera-worker@.service"):
+        path = os.path.join(root, "deploy", "systemd", name)
+        service = parse_unit(read(path)).get("Service") or []
+        exec_start = [v for k, v in service if k == "ExecStart"]
+        if not exec_start:
+            continue
+        words = shlex.split(exec_start[0].lstrip("-@:+!"))
+        program = os.path.basename(words[0])
+        env = unit_environment(root, service)
+        inline = [k for k, _ in service if k.startswith("SetCredential")]
+        expect(not inline, f"{name}: {' '.join(inline)}= puts a secret in the unit file")
+        credentials = {v.split(":", 1)[0] for k, v in service
+                       if k in ("LoadCredential", "LoadCredentialEncrypted")}
+
+        def source(p, credentials=credentials):
+            m = re.fullmatch(r"\$\{?CREDENTIALS_DIRECTORY\}?/([^/]+)|%d/([^/]+)", p)
+            if not m:
+                return f"{p} is not a systemd credential (${{CREDENTIALS_DIRECTORY}}/NAME)"
+            cred = m.group(1) or m.group(2)
+            if cred not in credentials:
+                return f"{p}: no LoadCredential={cred}:..."
+            return None
+
+        listen = flag_value(words, "--listen") or ""
+        listens = None
+        var = re.fullmatch(r"\$\{?(\w+)\}?", listen)
+        if var:
+            listens = env.get(var.group(1)) or [listen]
+        flat_env = {k: v[-1] for k, v in env.items()}
+        found.append(Invocation(f"systemd/{name} ExecStart", program, words[1:], flat_env,
+                                source, listens))
+    return found
+
+
+def dockerfile_invocations(root):
+    _, stages = dockerfile(root)
+    found = []
+    for number, instr, args in stages[-1]["body"]:
+        if instr == "CMD" and args.strip().startswith("["):
+            program, words = program_of(json.loads(args))
+            if program in PROGRAMS:
+                found.append(Invocation(f"Dockerfile line {number} CMD", program, words))
+    return found
+
+
+def sbatch_invocations(root):
+    text = read(os.path.join(root, "deploy", "slurm", "tessera-workers.sbatch"))
+    return [Invocation(f"slurm/tessera-workers.sbatch line {n}", "tessera-worker", w)
+            for n, w in invocations_in_shell(text, "tessera-worker", must_contain=r"\bsrun\b")]
+
+
+def all_invocations(root):
+    return (compose_invocations(root) + k8s_invocations(root) + systemd_invocations(root)
+            + dockerfile_invocations(root) + sbatch_invocations(root))
+
+
+def check_listen_security(root):
+    """Every coordinator listening off loopback serves TLS and checks tokens; none is
+    --insecure."""
+    coordinators = [i for i in all_invocations(root) if i.program == "tessera-coordinator"]
+    expect(coordinators, "no coordinator invocation found")
+    off = 0
+    for inv in coordinators:
+        expect("--insecure" not in inv.words,
+               f"{inv.where}: --insecure (plaintext or no tokens off loopback)")
+        listens = sorted(set(inv.listens or [flag_value(inv.words, "--listen") or ""]))
+        if all(is_loopback(l) for l in listens):
+            continue
+        off += 1
+        missing = [f for f in COORDINATOR_SECURITY if not inv.value(f)]
+        expect(not missing, f"{inv.where}: listens on {' or '.join(listens)} without "
+                            f"{' '.join(missing)}")
+    return f"{len(coordinators)} coordinators, {off} off loopback"
+
+
+def check_caller_security(root):
+    """Workers and CLI services connect over TLS with a token file."""
+    callers = [i for i in all_invocations(root) if i.program != "tessera-coordinator"]
+    expect(callers, "no worker or CLI invocation found")
+    for inv in callers:
+        missing = [f"{f} (or {var})" for f, var in CALLER_SECURITY.items()
+                   if flag_value(inv.words, f) is None and not inv.env.get(var)]
+        expect(not missing, f"{inv.where}: {inv.program} without {', '.join(missing)}")
+    return f"{len(callers)} workers and clients"
+
+
+def check_secret_sources(root):
+    """Secret files come from Compose secrets, Kubernetes Secrets or systemd credentials."""
+    checked = 0
+    for inv in all_invocations(root):
+        for flag in SECRET_FILE_FLAGS:
+            path = inv.value(flag)
+            if path is None:
+                continue
+            problem = inv.source(path)
+            expect(problem is None, f"{inv.where}: {flag}: {problem}")
+            checked += 1
+    return f"{checked} secret files"
+
+
+PEM_BLOCK = re.compile(r"-----BEGIN [A-Z0-9 ]+-----")
+TOKEN_FLAG = re.compile(r"(?<![\w-])--token(?![\w-])")
+# A token of `tessera token` (64 hex digits) or anything as long and random-looking;
+# "sha256:" digests (image pins) are not secrets.
+TOKEN_LIKE = re.compile(r"(?<![\w:])[0-9a-fA-F]{32,}(?![\w])")
+TOKEN_VARIABLE = re.compile(r"\bTESSERA_TOKEN\b\s*[:=]\s*['\"]?([^\s'\"]+)")
+
+
+def check_no_inline_secrets(root):
+    """No key, certificate or token is written into a deployment file."""
+    scanned = 0
+    deploy = os.path.join(root, "deploy")
+    for dirpath, dirnames, filenames in os.walk(deploy):
+        if rel(root, dirpath) == SECRETS_FOLDER:
+            dirnames[:] = []
+            continue
+        dirnames.sort()
+        for name in sorted(filenames):
+            path = os.path.join(dirpath, name)
+            try:
+                text = read(path)
+            except UnicodeDecodeError:
+                continue
+            scanned += 1
+            where = rel(root, path)
+            for number, line in enumerate(text.splitlines(), 1):
+                expect(not PEM_BLOCK.search(line), f"{where}:{number}: a PEM block "
+                       "(keys and certificates are made by deploy/make-secrets.sh)")
+                expect(not TOKEN_FLAG.search(line),
+                       f"{where}:{number}: --token on a command line (every user of the "
+                       "machine can read it in ps: use --token-file)")
+                m = TOKEN_VARIABLE.search(line)
+                expect(not m or m.group(1).startswith("$"),
+                       f"{where}:{number}: TESSERA_TOKEN holds a token (use a token file)")
+                expect(not TOKEN_LIKE.search(line),
+                       f"{where}:{number}: a long hex string that looks like a token")
+    for path, d in kubernetes_objects(root):
+        expect(d.get("kind") != "Secret" or not (d.get("data") or d.get("stringData")),
+               f"{path}: Secret/{d['metadata']['name']} holds data: create it from files "
+               "instead (see kustomization.yaml)")
+    return f"{scanned} files"
+
+
+def check_secrets_ignored(root):
+    """deploy/secrets/ is kept out of git and out of the image's build context."""
+    gitignore = os.path.join(root, ".gitignore")
+    expect(os.path.exists(gitignore), "no .gitignore")
+    patterns = [l.strip().rstrip("/").lstrip("/") for l in read(gitignore).splitlines()]
+    expect(SECRETS_FOLDER in patterns, f".gitignore does not ignore {SECRETS_FOLDER}/")
+    dockerignore = os.path.join(root, "deploy", "Dockerfile.dockerignore")
+    patterns = [l.strip().rstrip("/").lstrip("/") for l in read(dockerignore).splitlines()]
+    expect(SECRETS_FOLDER in patterns or "deploy" in patterns,
+           f"deploy/Dockerfile.dockerignore lets {SECRETS_FOLDER}/ into the build context")
+    script = os.path.join(root, "deploy", "make-secrets.sh")
+    expect(os.path.exists(script), "deploy/make-secrets.sh is missing")
+    text = read(script)
+    for command in ("cert ca", "cert server", "token --role worker", "token --role client"):
+        expect(command in text, f"deploy/make-secrets.sh does not run `tessera {command}`")
+    return None
+
+
+# ---------------------------------------------------------------------------------
+
+def run_all(root, build_dir, external, quiet=False, flags=None):
     report = Report(quiet)
-    flags = known_flags(root, build_dir)
+    flags = flags or known_flags(root, build_dir)
     if not quiet:
         for program, (f, source) in sorted(flags.items()):
             print(f"flags of {program} from {source}: {' '.join(sorted(f))}")
@@ -1048,7 +1395,7 @@ def run_all(root, build_dir, external, quiet=False):
     report.run("kubernetes: kustomization lists every manifest", check_kustomization, root)
     report.run("kubernetes: workloads well-formed, flags exist", check_k8s_workload_shape,
                root, flags)
-    report.run("kubernetes: coordinator PVC, gRPC probes, Service", check_k8s_coordinator, root)
+    report.run("kubernetes: coordinator PVC, probes, Service", check_k8s_coordinator, root)
     report.run("kubernetes: worker Deployment replicas, grace, target", check_k8s_worker, root)
     report.run("compose: coordinator, workers, volumes, healthcheck", check_compose, root, flags)
     report.run("dockerfile: packages match deploy/setup.sh", check_docker_packages, root)
@@ -1060,6 +1407,15 @@ def run_all(root, build_dir, external, quiet=False):
                "tessera-coordinator.service", flags)
     report.run("systemd: tessera-worker@.service", check_systemd_unit, root,
                "tessera-worker@.service", flags)
+    report.run("security: coordinators off loopback have TLS and tokens",
+               check_listen_security, root)
+    report.run("security: workers and clients have a CA and a token file",
+               check_caller_security, root)
+    report.run("security: secret files come from the platform's secret store",
+               check_secret_sources, root)
+    report.run("security: no key or token inline", check_no_inline_secrets, root)
+    report.run("security: deploy/secrets is ignored and made by make-secrets.sh",
+               check_secrets_ignored, root)
     if external:
         report.run("systemd-analyze verify", check_systemd_analyze, root)
         report.run("shellcheck -S warning", check_shellcheck, root)
@@ -1067,7 +1423,8 @@ def run_all(root, build_dir, external, quiet=False):
     return report
 
 
-# Each mutation breaks a copy of the files in one way that a check must notice.
+# Each mutation breaks a copy of the files in one way that a check must notice:
+# (title, file, text, replacement, count[, a part of the name of the check that must fail]).
 MUTATIONS = [
     ("broken YAML", "deploy/kubernetes/worker.yaml", "  replicas:", "  replicas: [", 1),
     ("worker replicas removed", "deploy/kubernetes/worker.yaml", "  replicas: ",
@@ -1101,6 +1458,55 @@ MUTATIONS = [
      "#TimeoutStopSec=", 1),
     ("unit flag typo", "deploy/systemd/tessera-coordinator.service", "--listen ${",
      "--listn ${", 1),
+    # Security: TLS, tokens, and secrets from the platform's store.
+    ("compose coordinator without tokens", "deploy/docker-compose.yml",
+     "      - --tokens\n      - /run/secrets/tokens\n", "", 1, "security: coordinators"),
+    ("compose coordinator --insecure", "deploy/docker-compose.yml",
+     "      - --tls-cert\n", "      - --insecure\n      - --tls-cert\n", 1, "security: coordinators"),
+    ("compose worker secret not mounted", "deploy/docker-compose.yml",
+     "      - worker.token\n    depends_on", "    depends_on", 1, "security: secret files"),
+    ("compose secret from outside deploy/secrets", "deploy/docker-compose.yml",
+     "file: ./secrets/tokens", "file: ../tokens", 1, "security: secret files"),
+    ("compose CLI without a CA", "deploy/docker-compose.yml",
+     "      TESSERA_TLS_CA: /run/secrets/ca.pem\n", "", 1, "security: workers and clients"),
+    ("image default coordinator in plaintext", "deploy/Dockerfile",
+     ', "--tokens", "/run/secrets/tokens"]', "]", 1, "security: coordinators"),
+    ("k8s worker without a CA", "deploy/kubernetes/worker.yaml",
+     "            - --tls-ca\n            - /etc/tessera/ca/ca.pem\n", "", 1, "security: workers and clients"),
+    ("k8s tokens in a ConfigMap", "deploy/kubernetes/coordinator.yaml",
+     "          secret:\n            secretName: tessera-tokens",
+     "          configMap:\n            name: tessera-tokens", 1, "security: secret files"),
+    ("k8s secret mounted writable", "deploy/kubernetes/worker.yaml",
+     "              mountPath: /etc/tessera/token\n              readOnly: true",
+     "              mountPath: /etc/tessera/token", 1, "security: secret files"),
+    ("k8s gRPC probe on a TLS port", "deploy/kubernetes/coordinator.yaml",
+     "            tcpSocket:\n              port: grpc", "            grpc:\n              port: 50051",
+     1, "probes"),
+    ("k8s Secret with data committed", "deploy/kubernetes/coordinator.yaml",
+     "apiVersion: v1\nkind: Service\n",
+     "apiVersion: v1\nkind: Secret\nmetadata:\n  name: tessera-tokens\nstringData:\n"
+     "  tokens: worker w x\n---\napiVersion: v1\nkind: Service\n", 1, "security: no key or token inline"),
+    ("systemd credential not loaded", "deploy/systemd/tessera-coordinator.service",
+     "LoadCredential=tokens:", "#LoadCredential=tokens:", 1, "security: secret files"),
+    ("systemd token from a plain path", "deploy/systemd/tessera-worker@.service",
+     "--token-file ${CREDENTIALS_DIRECTORY}/token", "--token-file /etc/tessera/worker.token", 1, "security: secret files"),
+    ("systemd coordinator off loopback in plaintext", "deploy/systemd/tessera-coordinator.service",
+     " --tls-cert ${CREDENTIALS_DIRECTORY}/server.pem --tls-key ${CREDENTIALS_DIRECTORY}/server.key",
+     "", 1, "security: coordinators"),
+    ("sbatch worker without a token file", "deploy/slurm/tessera-workers.sbatch",
+     ' --token-file "$TESSERA_TOKEN_FILE"', "", 1, "security: workers and clients"),
+    ("token on a command line", "deploy/systemd/worker.env", "TESSERA_WORKER_ARGS=\n",
+     "TESSERA_WORKER_ARGS=--token 0123456789abcdef\n", 1, "security: no key or token inline"),
+    ("token in the environment", "deploy/docker-compose.yml",
+     "      TESSERA_TOKEN_FILE: /run/secrets/client.token\n",
+     "      TESSERA_TOKEN_FILE: /run/secrets/client.token\n      TESSERA_TOKEN: abcdefghijklmnopqrst\n", 1, "security: no key or token inline"),
+    ("token pasted into a file", "deploy/systemd/coordinator.env", "TESSERA_COORDINATOR_ARGS=\n",
+     "TESSERA_COORDINATOR_ARGS=\n# client alice " + "3f" * 32 + "\n", 1, "security: no key or token inline"),
+    ("PEM key committed", "deploy/kubernetes/kustomization.yaml", "apiVersion:",
+     "# -----BEGIN PRIVATE KEY-----\n# MC4CAQAwBQYDK2VwBCIEIA==\n# -----END PRIVATE KEY-----\n"
+     "apiVersion:", 1, "security: no key or token inline"),
+    ("secrets not docker-ignored", "deploy/Dockerfile.dockerignore", "deploy/secrets\n", "", 1, "security: deploy/secrets"),
+    ("secrets not git-ignored", ".gitignore", "deploy/secrets/\n", "", 1, "security: deploy/secrets"),
 ]
 
 
@@ -1120,10 +1526,13 @@ def list_packages_dockerfile(root):
 def copy_for_checks(root, copy):
     """What the checks read: deploy/, the top-level files, and every top-level folder
     with just its CMakeLists.txt."""
-    shutil.copytree(os.path.join(root, "deploy"), os.path.join(copy, "deploy"))
+    # Never the generated secrets (deploy/secrets/): the checks skip them anyway.
+    shutil.copytree(os.path.join(root, "deploy"), os.path.join(copy, "deploy"),
+                    ignore=lambda d, names: ["secrets"] if os.path.samefile(
+                        d, os.path.join(root, "deploy")) else [])
     for name in os.listdir(root):
         source = os.path.join(root, name)
-        if name.startswith(".") or name in ("deploy", "build", "out"):
+        if (name.startswith(".") and name != ".gitignore") or name in ("deploy", "build", "out"):
             continue
         if os.path.isfile(source):
             shutil.copy(source, os.path.join(copy, name))
@@ -1134,7 +1543,8 @@ def copy_for_checks(root, copy):
 
 
 def self_test(root, build_dir):
-    baseline = run_all(root, build_dir, external=False, quiet=True)
+    flags = known_flags(root, build_dir)  # the same binaries for every copy
+    baseline = run_all(root, build_dir, external=False, quiet=True, flags=flags)
     ok = baseline.failed == 0
     print(f"{'PASS' if ok else 'FAIL'} self-test baseline: the real files pass "
           f"({baseline.passed} checks)")
@@ -1145,8 +1555,10 @@ def self_test(root, build_dir):
             copy = os.path.join(tmp, "repo")
             copy_for_checks(root, copy)
             detail = ""
+            wanted = None  # the check that must notice, where the mutation names one
             if mutation:
-                _, path, old, new, count = mutation
+                _, path, old, new, count = mutation[:5]
+                wanted = mutation[5] if len(mutation) > 5 else None
                 target = os.path.join(copy, path)
                 text = read(target)
                 if old not in text:
@@ -1157,13 +1569,15 @@ def self_test(root, build_dir):
                     f.write(text.replace(old, new, count))
             else:
                 detail = list_packages_dockerfile(copy)
-            report = run_all(copy, build_dir, external=False, quiet=True)
+            report = run_all(copy, build_dir, external=False, quiet=True, flags=flags)
             caught = report.failed > 0
+            if wanted:
+                caught = caught and any(wanted in f for f in report.failures)
             if detail:  # the message must name the package that is missing
                 caught = caught and any(detail in m for m in report.messages)
             print(f"{'PASS' if caught else 'FAIL'} self-test {title}: "
                   + (f"caught by {report.failures[0]}: {report.messages[0][:160]}"
-                     if caught else "not noticed"))
+                     if caught else "not noticed" + (f" by {wanted!r}" if wanted else "")))
             passed += caught
             failed += not caught
     return passed, failed

@@ -6,45 +6,26 @@
 // Each test has its own folders and ports (port 0, read back from --port-file); every
 // wait is a poll with a deadline; every process is killed with its group in TearDown.
 
-#include <fcntl.h>
-#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/prctl.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <chrono>
-#include <cstdlib>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
-#include <functional>
-#include <map>
-#include <memory>
-#include <sstream>
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
 #include <string>
 #include <thread>
 #include <vector>
 
-#include "blob_client.h"
-#include "bundle.h"
-#include "convert.h"
-#include "io/image_io.h"
+#include "farm_harness.h"
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
 #include "sha256.h"
-#include "tessera/v1/tessera.grpc.pb.h"
 
 namespace tessera {
 namespace {
 
-namespace fs = std::filesystem;
-using namespace std::chrono_literals;
-using Clock = std::chrono::steady_clock;
+using namespace farm_testing;
 
-const std::string kCornell = std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json";
 // Small enough for two cores, with several tiles so that several workers share a frame.
 const std::vector<std::string> kSmall = {"--width", "64", "--height",    "64",
                                          "--spp",   "4",  "--tile-size", "16"};
@@ -94,362 +75,7 @@ const std::vector<std::string> kStagedMedium = {"--width",
                                                 "--ic-samples",
                                                 "256"};
 
-std::string ReadFile(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
-// How many processes (other than this one) have `text` in their command line.
-int ProcessesMentioning(const std::string& text) {
-    int count = 0;
-    std::error_code ec;  // processes come and go while we look
-    for (fs::directory_iterator it("/proc", ec), end; !ec && it != end; it.increment(ec)) {
-        const fs::directory_entry& e = *it;
-        std::string name = e.path().filename().string();
-        if (name.find_first_not_of("0123456789") != std::string::npos ||
-            name == std::to_string(::getpid()))
-            continue;
-        std::string cmdline = ReadFile(e.path() / "cmdline");
-        if (cmdline.find(text) != std::string::npos) ++count;
-    }
-    return count;
-}
-
-std::string Join(const std::vector<std::string>& parts) {
-    std::string out;
-    for (const std::string& p : parts) out += (out.empty() ? "" : " ") + p;
-    return out;
-}
-
-// A child process in a process group of its own, which dies with the test
-// (PR_SET_PDEATHSIG) and is killed with its group when the object goes.
-class Process {
-  public:
-    Process(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err)
-        : argv_(argv) {
-        std::vector<char*> args;
-        for (const std::string& a : argv_) args.push_back(const_cast<char*>(a.c_str()));
-        args.push_back(nullptr);
-        std::string out_s = out.string(), err_s = err.string();
-        pid_t parent = ::getpid();
-        pid_ = ::fork();
-        if (pid_ == 0) {
-            ::setpgid(0, 0);
-            ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-            if (::getppid() != parent) ::_exit(127);
-            sigset_t none;
-            sigemptyset(&none);
-            ::sigprocmask(SIG_SETMASK, &none, nullptr);
-            // dup2, not freopen: freopen would flush a copy of the test's stdout buffer.
-            int in = ::open("/dev/null", O_RDONLY);
-            int out_fd = ::open(out_s.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-            int err_fd = ::open(err_s.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-            if (in < 0 || out_fd < 0 || err_fd < 0) ::_exit(126);
-            ::dup2(in, STDIN_FILENO);
-            ::dup2(out_fd, STDOUT_FILENO);
-            ::dup2(err_fd, STDERR_FILENO);
-            ::execv(args[0], args.data());
-            ::_exit(127);
-        }
-        if (pid_ > 0) ::setpgid(pid_, pid_);
-    }
-    ~Process() { Kill(SIGKILL); }
-
-    pid_t Pid() const { return pid_; }
-    const std::string& Program() const { return argv_.at(0); }
-
-    bool Running() {
-        if (exited_) return false;
-        int status = 0;
-        if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-            exited_ = true;
-            status_ = status;
-        }
-        return !exited_;
-    }
-
-    // Exit code, or -1 for a signal / a timeout (then the process is killed).
-    int Wait(std::chrono::milliseconds timeout) {
-        auto deadline = Clock::now() + timeout;
-        while (Running() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
-        if (Running()) {
-            Kill(SIGKILL);
-            return -1;
-        }
-        return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
-    }
-
-    void Kill(int sig) {
-        if (pid_ <= 0 || exited_) return;
-        ::kill(-pid_, sig);
-        ::kill(pid_, sig);
-        if (sig == SIGKILL) {
-            int status = 0;
-            ::waitpid(pid_, &status, 0);
-            exited_ = true;
-            status_ = status;
-        }
-    }
-
-  private:
-    std::vector<std::string> argv_;
-    pid_t pid_ = -1;
-    bool exited_ = false;
-    int status_ = 0;
-};
-
-struct CliResult {
-    int code = -1;
-    std::string out, err;
-};
-
-struct Stubs {
-    explicit Stubs(int port) {
-        auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port),
-                                           grpc::InsecureChannelCredentials());
-        farm = v1::Farm::NewStub(channel);
-        blobs = v1::BlobStore::NewStub(channel);
-        workers = v1::Workers::NewStub(channel);
-    }
-    std::unique_ptr<v1::Farm::Stub> farm;
-    std::unique_ptr<v1::BlobStore::Stub> blobs;
-    std::unique_ptr<v1::Workers::Stub> workers;
-};
-
-// A deadline for one unary call.
-struct Ctx : grpc::ClientContext {
-    explicit Ctx(std::chrono::milliseconds timeout = 10s) {
-        set_deadline(std::chrono::system_clock::now() + timeout);
-    }
-};
-
-// The render options of `tessera render`-style arguments, for the gRPC API.
-v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
-    RenderOverrides o;
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        if (a == "--irradiance-cache") {
-            o.irradiance_cache = true;
-            continue;
-        }
-        if (a == "--no-gradients") {
-            o.ic_gradients = false;
-            continue;
-        }
-        if (i + 1 >= args.size()) break;
-        const std::string& v = args[++i];
-        if (a == "--integrator") o.integrator = v;
-        if (a == "--width") o.width = std::stoi(v);
-        if (a == "--height") o.height = std::stoi(v);
-        if (a == "--spp") o.spp = std::stoi(v);
-        if (a == "--tile-size") o.tile_size = std::stoi(v);
-        if (a == "--photons") o.photons_global = std::stoi(v);
-        if (a == "--caustic-photons") o.photons_caustic = std::stoi(v);
-        if (a == "--photon-batches") o.photon_batches = std::stoi(v);
-        if (a == "--ic-passes") o.ic_passes = std::stoi(v);
-        if (a == "--ic-samples") o.ic_samples = std::stoi(v);
-        if (a == "--ic-accuracy") o.ic_accuracy = std::stof(v);
-    }
-    return ToProto(o);
-}
-
-class FarmTest : public ::testing::Test {
-  protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera_farm_" + std::to_string(::getpid()) + "_" +
-                ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::remove_all(dir_);
-        fs::create_directories(dir_);
-    }
-
-    void TearDown() override {
-        processes_.clear();  // kills every process group
-        if (HasFailure() || std::getenv("TESSERA_KEEP_TEST_DIRS"))
-            std::fprintf(stderr, "logs and outputs kept in %s\n", dir_.c_str());
-        else
-            fs::remove_all(dir_);
-    }
-
-    Process& Start(const std::vector<std::string>& argv, const std::string& log_name) {
-        processes_.push_back(std::make_unique<Process>(argv, dir_ / (log_name + ".log"),
-                                                       dir_ / (log_name + ".log")));
-        return *processes_.back();
-    }
-
-    // Starts a coordinator on `state` (port 0: any free one) and returns its port.
-    int StartCoordinator(const std::string& state, int port = 0, int lease_ms = 0,
-                         Process** process = nullptr) {
-        fs::path port_file = dir_ / (state + ".port");
-        fs::remove(port_file);
-        std::vector<std::string> argv = {
-            TESSERA_COORDINATOR,     "--listen",         "127.0.0.1:" + std::to_string(port),
-            "--port-file",           port_file.string(), "--state",
-            (dir_ / state).string(), "--output",         (dir_ / (state + "-frames")).string()};
-        if (lease_ms > 0) {
-            argv.push_back("--lease-ms");
-            argv.push_back(std::to_string(lease_ms));
-        }
-        Process& p = Start(argv, state + "-" + std::to_string(++coordinator_starts_));
-        if (process) *process = &p;
-        auto deadline = Clock::now() + 30s;
-        while (Clock::now() < deadline) {
-            std::string text = ReadFile(port_file);
-            int read = 0;
-            if (!text.empty() && (std::istringstream(text) >> read) && read > 0 &&
-                ReadFile(port_file) == text)
-                return read;
-            if (!p.Running()) break;
-            std::this_thread::sleep_for(10ms);
-        }
-        ADD_FAILURE() << "the coordinator did not write " << port_file << ":\n"
-                      << ReadFile(dir_ /
-                                  (state + "-" + std::to_string(coordinator_starts_) + ".log"));
-        return 0;
-    }
-
-    Process& StartWorker(int port, const std::string& name, int threads = 1) {
-        return Start({TESSERA_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port),
-                      "--threads", std::to_string(threads), "--name", name, "--cache",
-                      (dir_ / ("cache-" + name)).string()},
-                     name);
-    }
-
-    // Runs the `tessera` command to its end (at most `timeout`).
-    CliResult Cli(const std::vector<std::string>& args, std::chrono::milliseconds timeout = 90s) {
-        std::vector<std::string> argv = {TESSERA_CLI};
-        argv.insert(argv.end(), args.begin(), args.end());
-        std::string id = std::to_string(++cli_runs_);
-        fs::path out = dir_ / ("cli-" + id + ".out"), err = dir_ / ("cli-" + id + ".err");
-        Process run(argv, out, err);
-        CliResult r;
-        r.code = run.Wait(timeout);
-        r.out = ReadFile(out);
-        r.err = ReadFile(err);
-        return r;
-    }
-
-    // `tessera render` of frame `frame` with `args` into the test's folder.
-    fs::path RenderLocal(const std::vector<std::string>& args, int frame = 0) {
-        fs::path out = dir_ / ("local-" + std::to_string(++local_renders_) + ".exr");
-        std::vector<std::string> cli = {
-            "render", kCornell, "-q", "-o", out.string(), "--frame", std::to_string(frame)};
-        cli.insert(cli.end(), args.begin(), args.end());
-        CliResult r = Cli(cli);
-        EXPECT_EQ(r.code, 0) << r.err;
-        return out;
-    }
-
-    // Uploads the Cornell box's bundle and submits it through the API.
-    std::string SubmitCornell(Stubs& s, const std::vector<std::string>& args) {
-        v1::SubmitJobRequest req;
-        v1::JobSpec* spec = req.mutable_spec();
-        spec->set_name("cornell");
-        for (const BundleEntry& e : CollectBundle(kCornell)) {
-            EXPECT_EQ(UploadFile(*s.blobs, e.local_path), e.hash);
-            if (spec->scene_path().empty()) spec->set_scene_path(e.path);
-            v1::BundleFile* f = spec->add_files();
-            f->set_path(e.path);
-            f->set_hash(e.hash);
-            f->set_size(e.size);
-        }
-        *spec->mutable_options() = OptionsFromArgs(args);
-        Ctx ctx(60s);
-        v1::SubmitJobResponse resp;
-        grpc::Status st = s.farm->SubmitJob(&ctx, req, &resp);
-        EXPECT_TRUE(st.ok()) << StatusText(st);
-        return resp.job_id();
-    }
-
-    // Polls the job until `done` says so (true) or `timeout` passes (false). A call that
-    // fails (the coordinator restarting) counts as "not yet".
-    bool PollJob(Stubs& s, const std::string& job_id,
-                 const std::function<bool(const v1::JobStatus&)>& done,
-                 std::chrono::milliseconds timeout, v1::JobStatus* last = nullptr) {
-        auto deadline = Clock::now() + timeout;
-        while (Clock::now() < deadline) {
-            Ctx ctx(2s);
-            v1::GetJobRequest req;
-            req.set_job_id(job_id);
-            v1::JobStatus status;
-            if (s.farm->GetJob(&ctx, req, &status).ok()) {
-                if (last) *last = status;
-                if (done(status)) return true;
-            }
-            std::this_thread::sleep_for(20ms);
-        }
-        return false;
-    }
-
-    bool WaitDone(Stubs& s, const std::string& job_id, v1::JobStatus* last,
-                  std::chrono::milliseconds timeout = 90s) {
-        bool finished = PollJob(
-            s, job_id,
-            [](const v1::JobStatus& j) {
-                return j.state() == v1::JOB_STATE_DONE || j.state() == v1::JOB_STATE_FAILED ||
-                       j.state() == v1::JOB_STATE_CANCELLED;
-            },
-            timeout, last);
-        EXPECT_TRUE(finished) << "job " << job_id
-                              << " did not finish; last: " << last->ShortDebugString();
-        EXPECT_EQ(last->state(), v1::JOB_STATE_DONE) << last->ShortDebugString();
-        return finished && last->state() == v1::JOB_STATE_DONE;
-    }
-
-    // Downloads a finished frame's EXR through the API.
-    fs::path Download(Stubs& s, const std::string& job_id, int frame) {
-        grpc::ClientContext ctx;
-        ctx.set_deadline(std::chrono::system_clock::now() + 30s);
-        v1::DownloadFrameRequest req;
-        req.set_job_id(job_id);
-        req.set_frame(frame);
-        auto reader = s.farm->DownloadFrame(&ctx, req);
-        std::string bytes;
-        v1::FileChunk chunk;
-        while (reader->Read(&chunk)) bytes += chunk.data();
-        grpc::Status st = reader->Finish();
-        EXPECT_TRUE(st.ok()) << StatusText(st);
-        fs::path path = dir_ / ("farm-" + job_id + "-" + std::to_string(frame) + ".exr");
-        std::ofstream(path, std::ios::binary) << bytes;
-        return path;
-    }
-
-    fs::path dir_;
-    std::vector<std::unique_ptr<Process>> processes_;
-    int coordinator_starts_ = 0, cli_runs_ = 0, local_renders_ = 0;
-};
-
-// Same size, same channels, same bits in every pixel of every channel (the header's
-// render time may differ).
-void ExpectSameImage(const fs::path& expected, const fs::path& actual) {
-    ASSERT_TRUE(fs::exists(expected)) << expected;
-    ASSERT_TRUE(fs::exists(actual)) << actual;
-    Image a = ReadImage(expected.string()), b = ReadImage(actual.string());
-    ASSERT_EQ(a.width, b.width);
-    ASSERT_EQ(a.height, b.height);
-    ASSERT_EQ(a.channels, b.channels);
-    ASSERT_EQ(a.pixels.size(), b.pixels.size());
-    size_t differ = 0, first = 0;
-    for (size_t i = 0; i < a.pixels.size(); ++i) {
-        if (std::memcmp(&a.pixels[i], &b.pixels[i], sizeof(float)) != 0 && differ++ == 0) first = i;
-    }
-    EXPECT_EQ(differ, 0u) << "floats differ between " << expected << " and " << actual
-                          << "; first at index " << first << " (channel "
-                          << a.channels[first % a.channels.size()] << "): " << a.pixels[first]
-                          << " vs " << b.pixels[first];
-}
-
-std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
-    a.insert(a.end(), b.begin(), b.end());
-    return a;
-}
-
-std::string Trim(const std::string& s) {
-    size_t end = s.find_last_not_of(" \n\r\t");
-    return end == std::string::npos ? "" : s.substr(0, end + 1);
-}
+class FarmTest : public FarmHarness {};
 
 // submit, watch, status and fetch as a user types them, against three workers.
 TEST_F(FarmTest, ThreeWorkersMatchTheLocalRender) {
@@ -505,7 +131,7 @@ TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
         Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
                     "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string()},
                    kSmall),
-            120s);
+            240s);
     ASSERT_EQ(farm.code, 0) << farm.err;
     ExpectSameImage(RenderLocal(kSmall, 0), out / "cornell-box.0000.exr");
     ExpectSameImage(RenderLocal(kSmall, 1), out / "cornell-box.0001.exr");
@@ -525,7 +151,7 @@ TEST_F(FarmTest, FarmCommandLeavesNothingRunning) {
                    (dir_ / "frames").string(), "--keep-state", state.string()},
                   "farm-" + std::to_string(sig));
         // Wait until it renders: a coordinator that serves and a task done.
-        auto deadline = Clock::now() + 60s;
+        auto deadline = Clock::now() + 180s;
         bool rendering = false;
         while (!rendering && farm.Running() && Clock::now() < deadline) {
             std::this_thread::sleep_for(50ms);
@@ -541,9 +167,9 @@ TEST_F(FarmTest, FarmCommandLeavesNothingRunning) {
         ASSERT_EQ(ProcessesMentioning(state.string()), 4) << "tessera, a coordinator, two workers";
         farm.Kill(sig);
         if (sig == SIGINT) {
-            EXPECT_EQ(farm.Wait(20s), 130);
+            EXPECT_EQ(farm.Wait(120s), 130);
         }
-        deadline = Clock::now() + 20s;
+        deadline = Clock::now() + 120s;
         while (ProcessesMentioning(state.string()) > 0 && Clock::now() < deadline)
             std::this_thread::sleep_for(50ms);
         EXPECT_EQ(ProcessesMentioning(state.string()), 0) << "children outlived `tessera farm`";
@@ -565,7 +191,7 @@ TEST_F(FarmTest, KilledWorkerDoesNotStopTheJob) {
         [](const v1::JobStatus& j) {
             return j.tasks_done() >= 1 && j.leases_granted() - j.tasks_done() >= 2;
         },
-        60s, &status))
+        180s, &status))
         << status.ShortDebugString();
     ASSERT_LT(status.tasks_done(), status.tasks_total() - 2) << "no middle to kill the worker in";
     doomed.Kill(SIGKILL);
@@ -581,8 +207,11 @@ TEST_F(FarmTest, CoordinatorRestartKeepsFinishedTiles) {
     // Longer tiles than kMedium: `tessera watch` must be following before the kill.
     const std::vector<std::string> settings = {"--width", "128", "--height",    "128",
                                                "--spp",   "64",  "--tile-size", "16"};
+    // Leases long enough that a worker slowed down by a loaded machine keeps them: the
+    // count of leases below is then exact however slow the run.
+    constexpr int kLeaseMs = 5000;
     Process* coordinator = nullptr;
-    int port = StartCoordinator("state", 0, 1500, &coordinator);
+    int port = StartCoordinator("state", 0, kLeaseMs, &coordinator);
     ASSERT_GT(port, 0);
     constexpr int kWorkers = 2;
     for (int i = 1; i <= kWorkers; ++i) StartWorker(port, "w" + std::to_string(i));
@@ -603,17 +232,17 @@ TEST_F(FarmTest, CoordinatorRestartKeepsFinishedTiles) {
                 return j.tasks_done() >= 8 && j.leases_granted() - j.tasks_done() >= kWorkers &&
                        ReadFile(dir_ / "watch.log").find(job_id) != std::string::npos;
             },
-            60s, &before))
+            180s, &before))
             << before.ShortDebugString() << "\nwatch: " << ReadFile(dir_ / "watch.log");
     }
     ASSERT_LT(before.tasks_done(), before.tasks_total() - 4) << "no middle to kill it in";
     coordinator->Kill(SIGKILL);
     // The same state, the same port: the workers find it again by themselves.
-    ASSERT_EQ(StartCoordinator("state", port, 1500), port);
+    ASSERT_EQ(StartCoordinator("state", port, kLeaseMs), port);
     Stubs s(port);
     v1::JobStatus after;
     ASSERT_TRUE(PollJob(
-        s, job_id, [](const v1::JobStatus&) { return true; }, 10s, &after));
+        s, job_id, [](const v1::JobStatus&) { return true; }, 120s, &after));
     EXPECT_GE(after.tasks_done(), before.tasks_done()) << "finished tiles were lost";
     ASSERT_TRUE(WaitDone(s, job_id, &after));
     std::printf("tasks %d, done before the kill >= %d, leases granted %lld\n", after.tasks_total(),
@@ -621,14 +250,14 @@ TEST_F(FarmTest, CoordinatorRestartKeepsFinishedTiles) {
     // Only the tasks in flight at the kill may be leased again (one per worker thread),
     // and perhaps once more each if the restart outlived a lease.
     EXPECT_LE(after.leases_granted(), after.tasks_total() + 2 * kWorkers);
-    EXPECT_EQ(watch->Wait(30s), 0) << ReadFile(dir_ / "watch.log");
+    EXPECT_EQ(watch->Wait(120s), 0) << ReadFile(dir_ / "watch.log");
     ExpectSameImage(RenderLocal(settings), Download(s, job_id, 0));
 }
 
 // A worker whose lease expired must not have its result accepted once the task was
 // given to another: fencing by lease id.
 TEST_F(FarmTest, StaleResultIsRejected) {
-    int port = StartCoordinator("state", 0, 300);
+    int port = StartCoordinator("state", 0, 1000);
     ASSERT_GT(port, 0);
     Stubs s(port);
     const std::vector<std::string> one_tile = {"--width", "16", "--height",    "16",
@@ -646,7 +275,7 @@ TEST_F(FarmTest, StaleResultIsRejected) {
         return resp.worker_id();
     };
     auto lease = [&](const std::string& worker_id) {
-        auto deadline = Clock::now() + 20s;
+        auto deadline = Clock::now() + 120s;
         while (Clock::now() < deadline) {
             Ctx ctx;
             v1::LeaseTaskRequest req;
@@ -657,7 +286,7 @@ TEST_F(FarmTest, StaleResultIsRejected) {
             EXPECT_TRUE(st.ok()) << StatusText(st);
             if (!st.ok() || resp.has_task()) return resp.task();
         }
-        ADD_FAILURE() << "no task leased within 20 s";
+        ADD_FAILURE() << "no task leased within 120 s";
         return v1::Task();
     };
     auto complete = [&](const std::string& worker_id, const v1::Task& task, const std::string& hash,
@@ -682,6 +311,29 @@ TEST_F(FarmTest, StaleResultIsRejected) {
     ASSERT_EQ(current.task_id(), stale.task_id());
     EXPECT_NE(current.lease_id(), stale.lease_id());
     EXPECT_EQ(current.attempt(), stale.attempt() + 1);
+    // `fast` keeps its lease alive as a worker does, however long the steps below take.
+    std::atomic<bool> finished{false};
+    std::thread heartbeats([&] {
+        while (!finished) {
+            Ctx ctx(5s);
+            v1::HeartbeatRequest req;
+            req.set_worker_id(second);
+            req.set_task_id(current.task_id());
+            req.set_lease_id(current.lease_id());
+            req.set_lease_token(current.lease_token());
+            v1::HeartbeatResponse resp;
+            s.workers->Heartbeat(&ctx, req, &resp);
+            std::this_thread::sleep_for(100ms);
+        }
+    });
+    struct StopHeartbeats {
+        std::atomic<bool>& finished;
+        std::thread& thread;
+        ~StopHeartbeats() {
+            finished = true;
+            thread.join();
+        }
+    } stop_heartbeats{finished, heartbeats};
 
     // The real result of the tile, rendered here as a worker would.
     RenderOverrides overrides = FromProto(current.spec().options());
@@ -721,7 +373,7 @@ TEST_F(FarmTest, StaleResultIsRejected) {
     st = complete(second, current, hash);
     EXPECT_TRUE(st.ok()) << StatusText(st);
     v1::JobStatus status;
-    ASSERT_TRUE(WaitDone(s, job_id, &status, 30s));
+    ASSERT_TRUE(WaitDone(s, job_id, &status));
     EXPECT_EQ(status.tasks_done(), 1);
     ExpectSameImage(RenderLocal(one_tile), Download(s, job_id, 0));
 }
@@ -949,7 +601,7 @@ TEST_F(FarmTest, StatusAndWatchNameTheStage) {
     EXPECT_NE(ReadFile(dir_ / "watch.log").find("photons 0/4"), std::string::npos)
         << ReadFile(dir_ / "watch.log");
     for (int i = 1; i <= 3; ++i) StartWorker(port, "w" + std::to_string(i));
-    EXPECT_EQ(watch.Wait(60s), 0) << ReadFile(dir_ / "watch.log");
+    EXPECT_EQ(watch.Wait(240s), 0) << ReadFile(dir_ / "watch.log");
 
     fs::path out = dir_ / "frames";
     CliResult fetch = Cli({"fetch", job_id, "-o", out.string(), "--coordinator", address});
@@ -966,7 +618,7 @@ TEST_F(FarmTest, FarmCommandRendersStagedFrames) {
         Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
                     "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string()},
                    args),
-            120s);
+            240s);
     ASSERT_EQ(farm.code, 0) << farm.err;
     ExpectSameImage(RenderLocal(args, 0), out / "cornell-box.0000.exr");
     ExpectSameImage(RenderLocal(args, 1), out / "cornell-box.0001.exr");
@@ -991,7 +643,7 @@ TEST_F(FarmTest, WorkerKilledMidStageDoesNotChangeTheImage) {
             return f.stage() == "irradiance-2" && f.stage_done() >= 1 &&
                    f.stage_done() < f.stage_total() - 2 && j.leases_granted() - j.tasks_done() >= 2;
         },
-        60s, &status))
+        180s, &status))
         << status.ShortDebugString();
     doomed.Kill(SIGKILL);
     std::printf("killed a worker at %s %d/%d\n", status.frames(0).stage().c_str(),
@@ -1005,8 +657,11 @@ TEST_F(FarmTest, WorkerKilledMidStageDoesNotChangeTheImage) {
 // keeps the merged maps (durable, recorded with the release of the next stage), does
 // not shoot the photons again, and finishes the same image.
 TEST_F(FarmTest, CoordinatorKilledBetweenStagesKeepsTheMergedStages) {
+    // Leases long enough that a worker slowed down by a loaded machine keeps them: the
+    // count of leases below is then exact however slow the run.
+    constexpr int kLeaseMs = 5000;
     Process* coordinator = nullptr;
-    int port = StartCoordinator("state", 0, 1500, &coordinator);
+    int port = StartCoordinator("state", 0, kLeaseMs, &coordinator);
     ASSERT_GT(port, 0);
     constexpr int kWorkers = 2;
     for (int i = 1; i <= kWorkers; ++i) StartWorker(port, "w" + std::to_string(i));
@@ -1022,16 +677,16 @@ TEST_F(FarmTest, CoordinatorKilledBetweenStagesKeepsTheMergedStages) {
                 const std::string& stage = j.frames(0).stage();
                 return !stage.empty() && stage != "photons";
             },
-            60s, &before))
+            180s, &before))
             << before.ShortDebugString();
     }
     coordinator->Kill(SIGKILL);
     ASSERT_NE(before.frames(0).stage(), "render") << "the kill came too late to test anything";
-    ASSERT_EQ(StartCoordinator("state", port, 1500), port);
+    ASSERT_EQ(StartCoordinator("state", port, kLeaseMs), port);
     Stubs s(port);
     v1::JobStatus after;
     ASSERT_TRUE(PollJob(
-        s, job_id, [](const v1::JobStatus&) { return true; }, 10s, &after));
+        s, job_id, [](const v1::JobStatus&) { return true; }, 120s, &after));
     EXPECT_NE(after.frames(0).stage(), "photons") << "the merged photon maps were lost";
     EXPECT_GE(after.tasks_done(), before.tasks_done());
     ASSERT_TRUE(WaitDone(s, job_id, &after));

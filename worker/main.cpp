@@ -21,6 +21,8 @@
 #include <string>
 #include <thread>
 
+#include "security.h"
+#include "security_options.h"
 #include "worker.h"
 
 namespace fs = std::filesystem;
@@ -55,7 +57,8 @@ void LockCacheDir(const fs::path& dir) {
     // The descriptor stays open (and locked) until the process exits.
 }
 
-std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address) {
+std::shared_ptr<grpc::Channel> MakeWorkerChannel(const std::string& address,
+                                                 const tessera::ClientSecurity& security) {
     grpc::ChannelArguments args;
     // gRPC's own reconnect backoff grows to two minutes by default, which would keep a
     // worker away long after a restarted coordinator is back (the worker also resets it
@@ -63,7 +66,7 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address) {
     args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
     args.SetMaxReceiveMessageSize(64 << 20);
-    return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+    return tessera::MakeChannel(address, security, args);
 }
 
 // The worker the signal thread stops; null once it is gone.
@@ -131,6 +134,8 @@ int main(int argc, char** argv) {
         ->capture_default_str()
         ->check(CLI::Range(1, 64));
     app.add_flag("-v,--verbose", verbose, "Debug logging");
+    tessera::ClientSecurityFlags security;
+    tessera::AddClientSecurityOptions(app, security);
     CLI11_PARSE(app, argc, argv);
 
     std::string tag = name;
@@ -144,7 +149,7 @@ int main(int argc, char** argv) {
         // A default name holds the pid, so its default cache would never be used again.
         const bool temporary_cache = cache.empty() && !app.count("--name");
         LockCacheDir(options.cache_dir);
-        std::shared_ptr<grpc::Channel> channel = MakeChannel(coordinator);
+        std::shared_ptr<grpc::Channel> channel = MakeWorkerChannel(coordinator, security.Resolve());
         options.reset_connection = [channel] {
             grpc::experimental::ChannelResetConnectionBackoff(channel.get());
         };

@@ -51,7 +51,7 @@ bool IsTransient(grpc::StatusCode code) {
 bool IsTransientText(const std::string& text) {
     for (const char* code : {"UNAVAILABLE: ", "DEADLINE_EXCEEDED: ", "CANCELLED: "})
         if (text.find(code) != std::string::npos) return true;
-    return false;
+    return text.find("RESOURCE_EXHAUSTED: ") != std::string::npos && Worker::CoordinatorBusy(text);
 }
 
 template <typename Rep, typename Period>
@@ -535,18 +535,27 @@ void Worker::Fail(Active& task, std::string message) {
         spdlog::warn("{}: the failure could not be reported ({})", Describe(t), StatusText(st));
 }
 
+bool Worker::CoordinatorBusy(const std::string& message) {
+    return message.find("no space left on ") != std::string::npos ||
+           message.find("too many ") != std::string::npos;
+}
+
 grpc::Status Worker::CallWithRetry(const char* what, const Active& task,
                                    const std::function<grpc::Status()>& call) {
     Backoff backoff;
     const Clock::time_point start = Clock::now();
     while (true) {
         grpc::Status st = call();
-        if (st.ok() || !IsTransient(st.error_code())) return st;
+        // A coordinator out of disk space, or at its limit of open streams, keeps the
+        // lease alive meanwhile: the result is worth keeping, as while it is unreachable.
+        const bool busy = st.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED &&
+                          CoordinatorBusy(st.error_message());
+        if (st.ok() || (!IsTransient(st.error_code()) && !busy)) return st;
         milliseconds delay = backoff.Next();
         if (!KeepRetrying(task, start, delay)) return st;
         ResetConnection();
-        spdlog::warn("{}: {}: coordinator unreachable ({}); retrying in {} ms", Describe(task.task),
-                     what, StatusText(st), delay.count());
+        spdlog::warn("{}: {}: coordinator {} ({}); retrying in {} ms", Describe(task.task), what,
+                     busy ? "busy" : "unreachable", StatusText(st), delay.count());
         std::this_thread::sleep_for(delay);
     }
 }

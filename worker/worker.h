@@ -64,6 +64,10 @@ struct WorkerOptions {
 
 class Worker {
   public:
+    // A RESOURCE_EXHAUSTED that passes: the coordinator's "no space left on <path>"
+    // (it pauses until space returns) or "too many <streams>" (its limits of open calls).
+    static bool CoordinatorBusy(const std::string& message);
+
     // The stubs must outlive the worker; both are used from several threads.
     Worker(WorkerOptions options, v1::Workers::StubInterface& workers,
            v1::BlobStore::StubInterface& blobs);
