@@ -19,6 +19,7 @@ PACKAGES=(
   libxxhash-dev libzstd-dev libssl-dev
   libnanoflann-dev
   python3-yaml
+  clang libclang-rt-dev ninja-build
 )
 
 missing=()
