@@ -198,13 +198,7 @@ std::string Coordinator::SubmitJob(const v1::JobSpec& spec, const TokenLimits& t
     return job_id;
 }
 
-int64_t Coordinator::QueuedTasks() {
-    int64_t queued = 0;
-    for (const v1::JobStatus& job : scheduler_.ListJobs())
-        if (job.state() == v1::JOB_STATE_QUEUED || job.state() == v1::JOB_STATE_RUNNING)
-            queued += int64_t(job.tasks_total()) - job.tasks_done();
-    return queued;
-}
+int64_t Coordinator::QueuedTasks() { return scheduler_.UnfinishedTasks(); }
 
 std::string Coordinator::FrameFile(const std::string& job_id, int frame, bool preview) {
     std::string path = scheduler_.FrameExrPath(job_id, frame);

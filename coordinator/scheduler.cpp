@@ -320,6 +320,11 @@ int64_t Scheduler::TimesWorkersPutAside() {
     return times_put_aside_;
 }
 
+int64_t Scheduler::UnfinishedTasks() {
+    std::lock_guard lock(mu_);
+    return store_.UnfinishedTasks();
+}
+
 std::vector<v1::WorkerStatus> Scheduler::ListWorkers() {
     std::lock_guard lock(mu_);
     const int64_t now = clock_.NowMs();

@@ -188,6 +188,8 @@ class Scheduler {
     std::vector<std::string> WorkersPutAside();
     // How many times a worker was put aside since the coordinator started.
     int64_t TimesWorkersPutAside();
+    // Tasks not yet done of every queued or running job (one SQL sum).
+    int64_t UnfinishedTasks();
     // Every worker known since the coordinator started, by name.
     std::vector<v1::WorkerStatus> ListWorkers();
     // Gives back a lease that never reached its worker: re-queued and not counted.

@@ -301,6 +301,15 @@ int64_t Store::GetMeta(const std::string& key, int64_t fallback) {
 
 void Store::SetMeta(const std::string& key, int64_t value) { set_meta_.Bind(key, value).Run(); }
 
+int64_t Store::UnfinishedTasks() {
+    SqliteStatement sum = db_.Prepare(
+        "SELECT COALESCE(SUM(tasks_total - tasks_done), 0) FROM jobs WHERE state IN (?1, ?2)");
+    sum.Bind(int(v1::JOB_STATE_QUEUED), int(v1::JOB_STATE_RUNNING));
+    const int64_t n = sum.Step() ? sum.Int(0) : 0;
+    sum.Reset();
+    return n;
+}
+
 int64_t Store::InsertJob(const NewJob& job, int64_t now_ms) {
     max_task_id_.Bind();
     max_task_id_.Step();

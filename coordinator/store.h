@@ -150,6 +150,8 @@ class Store {
     void Checkpoint();
 
     int64_t GetMeta(const std::string& key, int64_t fallback);
+    // Tasks not yet done of every queued or running job.
+    int64_t UnfinishedTasks();
     void SetMeta(const std::string& key, int64_t value);
 
     // Inserts the job, its frames, stages and tasks (those of stages that wait for
