@@ -502,6 +502,9 @@ TriangleMesh LoadPly(const std::string& path, const std::string& data) {
     PlyBodyReader reader(data, body, format);
     std::vector<uint32_t> polygon;
     for (const PlyElement& e : elements) {
+        // An element without properties has nothing in the body, whatever count it claims
+        // (a count of 10^11 would otherwise loop for minutes over nothing).
+        if (e.properties.empty()) continue;
         for (size_t i = 0; i < e.count; ++i) {
             double attr[8] = {};
             polygon.clear();
