@@ -364,8 +364,7 @@ TEST_F(SandboxTest, HugeDeclaredImagesAreRefusedBeforeDecoding) {
     // OpenEXR would size its table of chunk offsets from the header on opening: the
     // header is checked first, so this one never reaches it.
     m = DecodeError(exr, "bomb.exr");
-    EXPECT_NE(m.find("bomb.exr: bad EXR header: a data window of 100000x100000"),
-              std::string::npos)
+    EXPECT_NE(m.find("bomb.exr: bad EXR header: a data window of 100000x100000"), std::string::npos)
         << m;
     // A well-formed EXR is checked against the caller's limit the same way.
     WriteExr((dir_ / "g.exr").string(), Gradient(64, 64), {});

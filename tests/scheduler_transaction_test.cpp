@@ -227,8 +227,8 @@ TEST_F(SchedulerTransactionTest, FailThatFailsTheJobIsAllOrNothing) {
     ASSERT_EQ(last.attempt, 3);
     LeasedTask other = Lease(b_);
     for (const char* when : {"BEFORE INSERT ON failures", "BEFORE UPDATE OF state ON jobs",
-                                    "BEFORE UPDATE OF state ON tasks WHEN NEW.state = 3",
-                                    "BEFORE UPDATE OF state ON frames"}) {
+                             "BEFORE UPDATE OF state ON tasks WHEN NEW.state = 3",
+                             "BEFORE UPDATE OF state ON frames"}) {
         ExpectAtomic("the last Fail", when,
                      [&] { S().Fail(a_, last.task_id, last.lease_id, last.lease_token, "crash"); });
         ExpectLeaseHeld(a_, last);
