@@ -24,10 +24,6 @@ namespace {
 // The samplers compute Hash(seed, x, y, i) as HashCombine(Hash(seed, x, y), i).
 static_assert(HashCombine(Hash(7u, 3, -4), 12) == Hash(7u, 3, -4, 12));
 
-const char* TypeName(SamplerType type) {
-    return type == SamplerType::kIndependent ? "independent" : "stratified";
-}
-
 // The values one pixel sample draws: pixel position, then a fixed mix of 1D and 2D dims.
 std::vector<float> Draw(Sampler& sampler, Vec2i pixel, int index, int dim = 0) {
     sampler.StartPixelSample(pixel, index, dim);
@@ -114,9 +110,10 @@ TEST_P(SamplerTest, DifferentPixelsSeedsAndIndicesDiffer) {
     EXPECT_NE(Draw(*a, {1, 2}, 0), Draw(*a, {2, 1}, 0));
 }
 
-INSTANTIATE_TEST_SUITE_P(Both, SamplerTest,
-                         ::testing::Values(SamplerType::kIndependent, SamplerType::kStratified),
-                         [](const auto& info) { return std::string(TypeName(info.param)); });
+INSTANTIATE_TEST_SUITE_P(All, SamplerTest,
+                         ::testing::Values(SamplerType::kIndependent, SamplerType::kStratified,
+                                           SamplerType::kSobol),
+                         [](const auto& info) { return std::string(SamplerTypeName(info.param)); });
 
 TEST(SamplerFactoryTest, RejectsNoSamples) {
     EXPECT_THROW(MakeSampler(SamplerType::kStratified, 0, 1), std::invalid_argument);

@@ -7,6 +7,10 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "core/math.h"
 
@@ -25,7 +29,14 @@ class Sampler {
     virtual std::unique_ptr<Sampler> Clone() const = 0;
 };
 
-enum class SamplerType { kIndependent, kStratified };
+enum class SamplerType { kIndependent, kStratified, kSobol };
+
+// The names of the sampler types in scene files, settings, metadata, the CLI and the API:
+// "independent", "stratified", "sobol".
+const char* SamplerTypeName(SamplerType type);
+std::optional<SamplerType> ParseSamplerType(std::string_view name);
+// Every name, in the order of the enum.
+const std::vector<std::string>& SamplerTypeNames();
 
 // spp samples per pixel; streams keyed by `seed`.
 std::unique_ptr<Sampler> MakeSampler(SamplerType type, int spp, uint64_t seed);

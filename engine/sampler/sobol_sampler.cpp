@@ -1,0 +1,56 @@
+#include "sampler/sobol_sampler.h"
+
+#include <algorithm>
+
+#include "core/rng.h"
+#include "sampler/stream_keys.h"
+
+namespace tessera {
+namespace {
+
+// The top 24 bits of a binary fraction: exactly representable, below 1.
+float ToUnit(uint32_t fraction) {
+    return std::min(static_cast<float>(fraction >> 8) * 0x1p-24f, kOneMinusEpsilon);
+}
+
+// The Sobol index of the current sample in the copy of the sequence that `key` names. Read
+// as a binary fraction with bit 0 first, it is already the van der Corput value reversed.
+uint32_t ShuffledIndex(uint32_t reversed_index, uint64_t key) {
+    return ReverseBits32(ScrambleUpwards(reversed_index, key));
+}
+
+}  // namespace
+
+void SobolSampler::StartPixelSample(Vec2i pixel, int sample_index, int dim) {
+    pixel_key_ = PixelKey(seed_, pixel);
+    reversed_index_ = ReverseBits32(static_cast<uint32_t>(sample_index));
+    dim_ = static_cast<uint64_t>(dim);
+}
+
+float SobolSampler::Get1D() {
+    uint64_t key = HashCombine(pixel_key_, dim_++);
+    uint32_t index = ShuffledIndex(reversed_index_, key);
+    return ToUnit(ReverseBits32(OwenScrambleReversed(index, MixBits(key + kSobolOwenKeyX))));
+}
+
+Vec2 SobolSampler::Sample2D(uint64_t dim) const {
+    uint64_t key = HashCombine(pixel_key_, dim);
+    uint32_t index = ShuffledIndex(reversed_index_, key);
+    uint32_t x = OwenScrambleReversed(index, MixBits(key + kSobolOwenKeyX));
+    uint32_t y = OwenScrambleReversed(SobolSecondReversed(index), MixBits(key + kSobolOwenKeyY));
+    return {ToUnit(ReverseBits32(x)), ToUnit(ReverseBits32(y))};
+}
+
+Vec2 SobolSampler::Get2D() {
+    Vec2 u = Sample2D(dim_);
+    dim_ += 2;
+    return u;
+}
+
+Vec2 SobolSampler::GetPixel2D() { return Sample2D(kPixelDimension); }
+
+std::unique_ptr<Sampler> SobolSampler::Clone() const {
+    return std::make_unique<SobolSampler>(*this);
+}
+
+}  // namespace tessera
