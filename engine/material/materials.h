@@ -7,6 +7,7 @@
 #include <string>
 
 #include "material/material.h"
+#include "material/microfacet.h"
 #include "material/texture.h"
 
 namespace tessera {
@@ -28,13 +29,24 @@ std::unique_ptr<Material> MakeMirrorMaterial(TextureRef reflectance);
 // Ideal smooth dielectric (glass) with relative index of refraction `eta` (inside over
 // outside); Fresnel-weighted choice of reflection and refraction on both sides.
 std::unique_ptr<Material> MakeDielectricMaterial(float eta);
-// GGX microfacet conductor; `eta`/`k` the complex index of refraction per channel.
-// alpha is the GGX roughness (alpha = perceptual roughness squared is the caller's job).
-std::unique_ptr<Material> MakeRoughConductorMaterial(Rgb eta, Rgb k, float alpha_x, float alpha_y);
-// GGX microfacet dielectric (Walter et al. 2007), reflection and transmission.
-std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha);
-// A diffuse base under a dielectric coat of index `eta` and GGX roughness `alpha`
+// Microfacet conductor; `eta`/`k` the complex index of refraction per channel. alpha is
+// the distribution's roughness (alpha = perceptual roughness squared is the caller's
+// job); below 1e-3 it is a smooth conductor. `specular` (values in [0, 1]) multiplies the
+// Fresnel term; null means 1.
+std::unique_ptr<Material> MakeRoughConductorMaterial(Rgb eta, Rgb k, float alpha_x, float alpha_y,
+                                                     MicrofacetType type = MicrofacetType::kGgx,
+                                                     TextureRef specular = nullptr);
+// Microfacet dielectric (Walter et al. 2007), reflection and transmission.
+std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha,
+                                                      MicrofacetType type = MicrofacetType::kGgx);
+// A diffuse base under a dielectric coat of index `eta` and microfacet roughness `alpha`
 // (alpha = 0: a smooth coat).
-std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha);
+std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha,
+                                              MicrofacetType type = MicrofacetType::kGgx);
+// A linear blend (1 - w) a + w b of two materials, w the channel average of `weight`
+// (values in [0, 1]) at the surface point. `a` and `b` are not owned: they must outlive
+// the blend (in a scene, both are the scene's materials too).
+std::unique_ptr<Material> MakeBlendMaterial(const Material* a, const Material* b,
+                                            TextureRef weight);
 
 }  // namespace tessera

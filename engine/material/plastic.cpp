@@ -13,21 +13,23 @@ namespace {
 // Both sides reflect alike: a pair below the surface is mirrored to the upper side.
 Vec3 FlipZ(const Vec3& w) { return {w.x, w.y, -w.z}; }
 
-// The coat's directional albedo for a rough coat: the expected visible-normal-sampling
-// weight F G / G1(wo) on a stratified grid (deterministic, so that every process builds
-// the same table).
-float RoughCoatAlbedo(const GgxDistribution& distrib, float eta, float mu) {
+// The coat's directional albedo for a rough coat: the expected sampling weight
+// f cos(theta_i) / pdf = F D G (wo . wm) / (cos(theta_o) pdf(wm)) on a stratified grid
+// (deterministic, so that every process builds the same table). For GGX's visible
+// normals this is F G / G1(wo).
+float RoughCoatAlbedo(const MicrofacetDistribution& distrib, float eta, float mu) {
     constexpr int kGrid = 32;
     Vec3 wo(SafeSqrt(1 - Sqr(mu)), 0, mu);
-    float g1_o = distrib.G1(wo);
     double sum = 0;
     for (int i = 0; i < kGrid; ++i) {
         for (int j = 0; j < kGrid; ++j) {
             Vec2 u((i + 0.5f) / kGrid, (j + 0.5f) / kGrid);
             Vec3 wm = distrib.SampleWm(wo, u);
             Vec3 wi = Reflect(wo, wm);
-            if (wi.z <= 0) continue;
-            sum += FrDielectric(Dot(wo, wm), eta) * distrib.G(wo, wi) / g1_o;
+            float pdf = distrib.Pdf(wo, wm);
+            if (wi.z <= 0 || pdf <= 0) continue;
+            sum += double(FrDielectric(Dot(wo, wm), eta)) * distrib.D(wm) * distrib.G(wo, wi) *
+                   Dot(wo, wm) / (double(mu) * pdf);
         }
     }
     return static_cast<float>(sum / (kGrid * kGrid));
@@ -35,10 +37,10 @@ float RoughCoatAlbedo(const GgxDistribution& distrib, float eta, float mu) {
 
 }  // namespace
 
-CoatAlbedo::CoatAlbedo(float eta, float alpha)
-    : eta_(eta), smooth_(GgxDistribution(alpha, alpha).EffectivelySmooth()) {
+CoatAlbedo::CoatAlbedo(float eta, float alpha, MicrofacetType type)
+    : eta_(eta), smooth_(MicrofacetDistribution(alpha, alpha).EffectivelySmooth()) {
     if (!smooth_) {
-        GgxDistribution distrib(alpha, alpha);
+        MicrofacetDistribution distrib(alpha, alpha, type);
         for (int i = 0; i < kSize; ++i) {
             // mu = 0 exactly has no visible normals; its neighbourhood stands in for it.
             float mu = std::max(Sqr(float(i) / (kSize - 1)), 1e-4f);
@@ -64,8 +66,9 @@ float CoatAlbedo::E(float mu) const {
     return Lerp(x - i, table_[i], table_[i + 1]);
 }
 
-PlasticBsdf::PlasticBsdf(const Rgb& diffuse, float eta, float alpha, const CoatAlbedo* coat)
-    : rd_(diffuse), eta_(eta), distrib_(alpha, alpha), coat_(coat) {
+PlasticBsdf::PlasticBsdf(const Rgb& diffuse, float eta, float alpha, const CoatAlbedo* coat,
+                         MicrofacetType type)
+    : rd_(diffuse), eta_(eta), distrib_(alpha, alpha, type), coat_(coat) {
     // A coat that reflects everything at every angle leaves nothing for the base.
     float avg = coat_->Average();
     matte_norm_ = avg < 1 ? kInvPi / (1 - avg) : 0;
@@ -81,10 +84,15 @@ Rgb PlasticBsdf::EvalUpper(const Vec3& wo, const Vec3& wi) const {
     float cos_o = wo.z, cos_i = wi.z;
     if (cos_o <= 0 || cos_i <= 0) return {};
     Rgb f = rd_ * ((1 - coat_->E(cos_o)) * (1 - coat_->E(cos_i)) * matte_norm_);
-    if (!Smooth()) {
-        Vec3 wm = Normalize(wo + wi);
+    Vec3 h = wo + wi;
+    float g = Smooth() ? 0 : distrib_.G(wo, wi);
+    // A pair so close to the horizon that the half vector underflows is fully masked (g
+    // is 0), and the denominator underflows with it: divided in two steps to keep 0 / 0
+    // out.
+    if (g > 0 && LengthSquared(h) > 0) {
+        Vec3 wm = Normalize(h);
         float fr = FrDielectric(Dot(wo, wm), eta_);
-        f += Rgb(distrib_.D(wm) * distrib_.G(wo, wi) * fr / (4 * cos_i * cos_o));
+        f += Rgb(distrib_.D(wm) * g * fr / (4 * cos_i) / cos_o);
     }
     return f;
 }
@@ -154,23 +162,30 @@ namespace {
 
 class PlasticMaterial final : public Material {
   public:
-    PlasticMaterial(TextureRef diffuse, float eta, float alpha)
-        : diffuse_(std::move(diffuse)), eta_(eta), alpha_(alpha), coat_(eta, alpha) {}
+    PlasticMaterial(TextureRef diffuse, float eta, float alpha, MicrofacetType type)
+        : diffuse_(std::move(diffuse)),
+          eta_(eta),
+          alpha_(alpha),
+          type_(type),
+          coat_(eta, alpha, type) {}
 
     const Bsdf* GetBsdf(const TextureContext& ctx, ScratchBuffer& arena) const override {
-        return arena.Alloc<PlasticBsdf>(Clamp(diffuse_->Evaluate(ctx), 0, 1), eta_, alpha_, &coat_);
+        return arena.Alloc<PlasticBsdf>(Clamp(diffuse_->Evaluate(ctx), 0, 1), eta_, alpha_, &coat_,
+                                        type_);
     }
 
   private:
     TextureRef diffuse_;
     float eta_, alpha_;
+    MicrofacetType type_;
     CoatAlbedo coat_;  // built once here: it costs ~30k microfacet samples
 };
 
 }  // namespace
 
-std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha) {
-    return std::make_unique<PlasticMaterial>(std::move(diffuse), eta, alpha);
+std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha,
+                                              MicrofacetType type) {
+    return std::make_unique<PlasticMaterial>(std::move(diffuse), eta, alpha, type);
 }
 
 }  // namespace tessera

@@ -1,7 +1,7 @@
 #pragma once
 
 // Plastic: a diffuse base under a dielectric coat of index `eta` (inside over outside)
-// and GGX roughness `alpha` (0: a smooth coat).
+// and microfacet roughness `alpha` (GGX or Beckmann; 0: a smooth coat).
 //
 // Model: the coupled specular-matte BRDF of Kelemen and Szirmay-Kalos (2001, "A
 // Microfacet Based Coupled Specular-Matte BRDF Model with Importance Sampling"):
@@ -10,8 +10,8 @@
 //
 // where f_coat is the coat's reflection alone (a GGX lobe D G F / (4 cos cos) with the
 // dielectric Fresnel term at the microfacet, or a delta mirror weighted by F when
-// smooth), E(w) its directional albedo, and E_avg = 2 int E(mu) mu dmu its hemispherical
-// average. The matte term takes exactly the energy the coat does not reflect, so the
+// smooth; D is GGX or Beckmann), E(w) its directional albedo, and E_avg = 2 int E(mu) mu dmu its
+// hemispherical average. The matte term takes exactly the energy the coat does not reflect, so the
 // directional albedo is E(wo) + Rd (1 - E(wo)) <= 1, equal to 1 for a white base; f is
 // symmetric in wo and wi. E is F itself for a smooth coat and is tabulated once per
 // material (CoatAlbedo) for a rough one. Internal reflections between base and coat,
@@ -33,7 +33,7 @@ namespace tessera {
 // The directional albedo E(mu) of the coat's reflection, for mu = |cos theta| in [0, 1].
 class CoatAlbedo {
   public:
-    CoatAlbedo(float eta, float alpha);
+    CoatAlbedo(float eta, float alpha, MicrofacetType type = MicrofacetType::kGgx);
     float E(float mu) const;
     float Average() const { return average_; }
 
@@ -48,8 +48,9 @@ class CoatAlbedo {
 
 class PlasticBsdf final : public Bsdf {
   public:
-    // `coat` must be built from the same eta and alpha and outlive the BSDF.
-    PlasticBsdf(const Rgb& diffuse, float eta, float alpha, const CoatAlbedo* coat);
+    // `coat` must be built from the same eta, alpha and type and outlive the BSDF.
+    PlasticBsdf(const Rgb& diffuse, float eta, float alpha, const CoatAlbedo* coat,
+                MicrofacetType type = MicrofacetType::kGgx);
 
     Rgb Eval(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     float Pdf(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
@@ -68,7 +69,7 @@ class PlasticBsdf final : public Bsdf {
 
     Rgb rd_;
     float eta_;
-    GgxDistribution distrib_;
+    MicrofacetDistribution distrib_;
     const CoatAlbedo* coat_;
     float matte_norm_;  // 1 / (pi (1 - E_avg))
 };

@@ -1,5 +1,7 @@
 #include "material/rough_conductor.h"
 
+#include <utility>
+
 #include "material/fresnel.h"
 #include "material/materials.h"
 
@@ -12,8 +14,10 @@ Rgb RoughConductorBsdf::Eval(const Vec3& wo, const Vec3& wi, TransportMode) cons
     Vec3 wm = wi + wo;
     if (LengthSquared(wm) == 0) return {};
     wm = FaceForward(Normalize(wm), Vec3(0, 0, 1));
-    Rgb f = FrConductor(AbsDot(wo, wm), eta_, k_);
-    return f * (distrib_.D(wm) * distrib_.G(wo, wi) / (4 * cos_i * cos_o));
+    float g = distrib_.G(wo, wi);
+    if (g == 0) return {};  // fully masked; also keeps a 0 / 0 out near the horizon
+    Rgb f = Fresnel(AbsDot(wo, wm));
+    return f * (distrib_.D(wm) * g / (4 * cos_i * cos_o));
 }
 
 float RoughConductorBsdf::Pdf(const Vec3& wo, const Vec3& wi, TransportMode) const {
@@ -34,7 +38,7 @@ std::optional<BsdfSample> RoughConductorBsdf::Sample(const Vec3& wo, float, Vec2
     if (distrib_.EffectivelySmooth()) {
         s.wi = Vec3(-wo.x, -wo.y, wo.z);
         float cos_i = AbsCosTheta(s.wi);
-        s.f = FrConductor(cos_i, eta_, k_) / cos_i;
+        s.f = Fresnel(cos_i) / cos_i;
         s.pdf = 1;
         s.flags = kBsdfReflection | kBsdfSpecular;
         return s;
@@ -54,28 +58,39 @@ uint32_t RoughConductorBsdf::Flags() const {
     return kBsdfReflection | (distrib_.EffectivelySmooth() ? kBsdfSpecular : kBsdfGlossy);
 }
 
-Rgb RoughConductorBsdf::Albedo() const { return FrConductor(1, eta_, k_); }
+Rgb RoughConductorBsdf::Albedo() const { return Fresnel(1); }
 
 namespace {
 
 class RoughConductorMaterial final : public Material {
   public:
-    RoughConductorMaterial(const Rgb& eta, const Rgb& k, float alpha_x, float alpha_y)
-        : eta_(eta), k_(k), alpha_x_(alpha_x), alpha_y_(alpha_y) {}
+    RoughConductorMaterial(const Rgb& eta, const Rgb& k, float alpha_x, float alpha_y,
+                           MicrofacetType type, TextureRef specular)
+        : eta_(eta),
+          k_(k),
+          alpha_x_(alpha_x),
+          alpha_y_(alpha_y),
+          type_(type),
+          specular_(std::move(specular)) {}
 
-    const Bsdf* GetBsdf(const TextureContext&, ScratchBuffer& arena) const override {
-        return arena.Alloc<RoughConductorBsdf>(eta_, k_, alpha_x_, alpha_y_);
+    const Bsdf* GetBsdf(const TextureContext& ctx, ScratchBuffer& arena) const override {
+        Rgb specular = specular_ ? Clamp(specular_->Evaluate(ctx), 0, 1) : Rgb(1);
+        return arena.Alloc<RoughConductorBsdf>(eta_, k_, alpha_x_, alpha_y_, type_, specular);
     }
 
   private:
     Rgb eta_, k_;
     float alpha_x_, alpha_y_;
+    MicrofacetType type_;
+    TextureRef specular_;
 };
 
 }  // namespace
 
-std::unique_ptr<Material> MakeRoughConductorMaterial(Rgb eta, Rgb k, float alpha_x, float alpha_y) {
-    return std::make_unique<RoughConductorMaterial>(eta, k, alpha_x, alpha_y);
+std::unique_ptr<Material> MakeRoughConductorMaterial(Rgb eta, Rgb k, float alpha_x, float alpha_y,
+                                                     MicrofacetType type, TextureRef specular) {
+    return std::make_unique<RoughConductorMaterial>(eta, k, alpha_x, alpha_y, type,
+                                                    std::move(specular));
 }
 
 }  // namespace tessera

@@ -70,6 +70,8 @@ std::optional<BsdfSample> RoughDielectricBsdf::Sample(const Vec3& wo, float uc, 
     if (Smooth()) return SampleSmoothDielectric(eta_, wo, uc, mode);
     if (wo.z == 0) return std::nullopt;
     Vec3 wm = distrib_.SampleWm(wo, u);
+    // A normal facing away from wo has no density (Pdf); only Beckmann's sampler makes one.
+    if (Dot(wo, wm) * wo.z <= 0) return std::nullopt;
     float r = FrDielectric(Dot(wo, wm), eta_);
     BsdfSample s;
     if (uc < r) {
@@ -101,20 +103,22 @@ namespace {
 
 class RoughDielectricMaterial final : public Material {
   public:
-    RoughDielectricMaterial(float eta, float alpha) : eta_(eta), alpha_(alpha) {}
+    RoughDielectricMaterial(float eta, float alpha, MicrofacetType type)
+        : eta_(eta), alpha_(alpha), type_(type) {}
 
     const Bsdf* GetBsdf(const TextureContext&, ScratchBuffer& arena) const override {
-        return arena.Alloc<RoughDielectricBsdf>(eta_, alpha_, alpha_);
+        return arena.Alloc<RoughDielectricBsdf>(eta_, alpha_, alpha_, type_);
     }
 
   private:
     float eta_, alpha_;
+    MicrofacetType type_;
 };
 
 }  // namespace
 
-std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha) {
-    return std::make_unique<RoughDielectricMaterial>(eta, alpha);
+std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha, MicrofacetType type) {
+    return std::make_unique<RoughDielectricMaterial>(eta, alpha, type);
 }
 
 }  // namespace tessera

@@ -1,12 +1,13 @@
 #pragma once
 
-// A rough dielectric boundary (frosted glass): GGX microfacet reflection and
+// A rough dielectric boundary (frosted glass): GGX or Beckmann microfacet reflection and
 // transmission after Walter et al. 2007, "Microfacet Models for Refraction through Rough
 // Surfaces", in the form of pbrt-v4's DielectricBxDF. `eta` is inside over outside and
 // wo.z < 0 means wo is inside; the generalized half vector is always turned to +z.
 //
-// Sampling: a visible normal of wo, then reflection or refraction about it with
-// probability R or 1 - R (the Fresnel term at that microfacet).
+// Sampling: a normal of the distribution facing wo (see MicrofacetDistribution), then
+// reflection or refraction about it with probability R or 1 - R (the Fresnel term at
+// that microfacet).
 //
 // Transport modes: with eta' = n(wi side) / n(wo side), the importance-mode BTDF is the
 // physical one; the radiance-mode BTDF is that divided by eta'^2. Hence
@@ -22,8 +23,9 @@ namespace tessera {
 
 class RoughDielectricBsdf final : public Bsdf {
   public:
-    RoughDielectricBsdf(float eta, float alpha_x, float alpha_y)
-        : eta_(eta), distrib_(alpha_x, alpha_y) {}
+    RoughDielectricBsdf(float eta, float alpha_x, float alpha_y,
+                        MicrofacetType type = MicrofacetType::kGgx)
+        : eta_(eta), distrib_(alpha_x, alpha_y, type) {}
 
     Rgb Eval(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     float Pdf(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
@@ -42,7 +44,7 @@ class RoughDielectricBsdf final : public Bsdf {
     float MicrofacetFresnel(const Vec3& wo, const Vec3& wi, const Vec3& wm) const;
 
     float eta_;
-    GgxDistribution distrib_;
+    MicrofacetDistribution distrib_;
 };
 
 }  // namespace tessera
