@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "chi_square.h"
 #include "core/rng.h"
 #include "film/filter.h"
 
@@ -29,6 +30,8 @@ const char* TypeName(FilterType type) {
             return "gaussian";
         case FilterType::kMitchell:
             return "mitchell";
+        case FilterType::kTent:
+            return "tent";
     }
     return "?";
 }
@@ -357,7 +360,7 @@ TEST_P(SeamTest, TilingsGiveTheSameImage) {
 
 INSTANTIATE_TEST_SUITE_P(AllFilters, SeamTest,
                          ::testing::Values(FilterType::kBox, FilterType::kGaussian,
-                                           FilterType::kMitchell),
+                                           FilterType::kMitchell, FilterType::kTent),
                          [](const auto& info) { return std::string(TypeName(info.param)); });
 
 TEST(FilmTest, ConstantRadianceGivesConstantImage) {
@@ -368,7 +371,8 @@ TEST(FilmTest, ConstantRadianceGivesConstantImage) {
     v.normal = Vec3(0, 0.6f, 0.8f);
     v.depth = 7.25f;
     const float expected[] = {0.3f, 1.7f, 12.5f, 1.0f, 0.2f, 0.4f, 0.8f, 0.0f, 0.6f, 0.8f, 7.25f};
-    for (FilterType type : {FilterType::kBox, FilterType::kGaussian, FilterType::kMitchell}) {
+    for (FilterType type :
+         {FilterType::kBox, FilterType::kGaussian, FilterType::kMitchell, FilterType::kTent}) {
         SCOPED_TRACE(TypeName(type));
         auto filter = MakeDefaultFilter(type);
         Film film(res);
@@ -443,6 +447,212 @@ TEST(FilmTest, MergeRejectsMalformedData) {
     EXPECT_THROW(film.Merge(PixelBounds{{-1, 0}, {3, 4}}, data), std::invalid_argument);
     data.pop_back();
     EXPECT_THROW(film.Merge(PixelBounds{{6, 6}, {10, 10}}, data), std::invalid_argument);
+}
+
+TEST(FilterTest, TentShapeAndNames) {
+    auto tent = MakeDefaultFilter(FilterType::kTent);
+    EXPECT_EQ(tent->Radius(), 1.0f);
+    EXPECT_EQ(tent->Evaluate({0, 0}), 1.0f);
+    EXPECT_EQ(tent->Evaluate({0.25f, 0}), 0.75f);
+    EXPECT_EQ(tent->Evaluate({-0.5f, 0.5f}), 0.25f);
+    EXPECT_EQ(tent->Evaluate({1.0f, 0}), 0.0f);
+    EXPECT_EQ(tent->Evaluate({0, -1.2f}), 0.0f);
+    EXPECT_NEAR(Integrate2D(*tent), 1.0, 1e-5);  // r^2
+    FilterSettings settings;
+    settings.type = FilterType::kTent;
+    settings.radius = 2;
+    auto wide = MakeFilter(settings);
+    EXPECT_EQ(wide->Evaluate({1.0f, 0}), 0.5f);
+    EXPECT_NEAR(Integrate2D(*wide), 4.0, 1e-4);
+    // At radius 1 the unit shifts sum to one (bilinear interpolation weights).
+    for (int i = 0; i < 100; ++i) {
+        Vec2 p(UniformAt(Hash(5, i), 0) + 10, UniformAt(Hash(5, i), 1) + 10);
+        double sum = 0;
+        for (int y = 8; y < 13; ++y)
+            for (int x = 8; x < 13; ++x) sum += tent->Evaluate({x + 0.5f - p.x, y + 0.5f - p.y});
+        EXPECT_NEAR(sum, 1.0, 1e-6);
+    }
+    for (FilterType t :
+         {FilterType::kBox, FilterType::kGaussian, FilterType::kMitchell, FilterType::kTent})
+        EXPECT_EQ(ParseFilterType(FilterTypeName(t)), t);
+    EXPECT_EQ(ParseFilterType("triangle"), std::nullopt);
+    EXPECT_EQ(ParseFilterSampling("importance"), FilterSampling::kImportance);
+    EXPECT_EQ(ParseFilterSampling("splat"), FilterSampling::kSplat);
+    EXPECT_EQ(ParseFilterSampling("Importance"), std::nullopt);
+}
+
+TEST(TileFilmTest, ImportanceSamplingNeedsNoApron) {
+    const Vec2i res(40, 30);
+    const PixelBounds interior{{16, 8}, {24, 16}};
+    FilterSettings settings;
+    settings.type = FilterType::kMitchell;
+    EXPECT_EQ(FilmRadius(settings), 2.0f);
+    settings.sampling = FilterSampling::kImportance;
+    EXPECT_EQ(FilmRadius(settings), 0.0f);
+    auto mitchell = MakeFilter(settings);
+    TileFilm film(interior, res, *mitchell, FilterSampling::kImportance);
+    EXPECT_EQ(film.Region(), interior);
+    EXPECT_EQ(TileRegion(interior, res, FilmRadius(settings)), interior);
+
+    SampleValue v;
+    v.L = Rgb(1, 2, 3);
+    v.depth = 4;
+    film.AddPixelSample({17, 9}, -0.25f, v);
+    film.AddPixelSample({17, 9}, 1.0f, v);
+    // Outside the tile, or with a weight that is not a number: dropped.
+    film.AddPixelSample({15, 9}, 1.0f, v);
+    film.AddPixelSample({24, 9}, 1.0f, v);
+    film.AddPixelSample({18, 9}, std::nanf(""), v);
+    film.AddPixelSample({18, 9}, std::numeric_limits<float>::infinity(), v);
+    std::vector<int> touched = TouchedPixels(film);
+    ASSERT_EQ(touched.size(), 1u);
+    EXPECT_EQ(touched[0], 1 * 8 + 1);
+    const float* px = &film.Data()[touched[0] * TileFilm::kChannels];
+    EXPECT_EQ(px[1], 0.75f * 2);
+    EXPECT_EQ(px[9], 0.75f * 4);
+    EXPECT_EQ(px[TileFilm::kChannels - 1], 0.75f);
+}
+
+// Probability of each of `cells` equal cells over [-r, r] under the filter's normalised
+// |f| along one axis, by a fine midpoint rule in double.
+std::vector<double> CellProbabilities1D(const SeparableFilter& filter, int cells) {
+    const double r = filter.Radius();
+    const int points = 4000;
+    std::vector<double> p(cells);
+    double total = 0;
+    for (int c = 0; c < cells; ++c) {
+        for (int k = 0; k < points; ++k) {
+            double x = -r + 2 * r * (c + (k + 0.5) / points) / cells;
+            p[c] += std::abs(filter.Evaluate1D(static_cast<float>(x)));
+        }
+        total += p[c];
+    }
+    for (double& v : p) v /= total;
+    return p;
+}
+
+double Integral1D(const SeparableFilter& filter, bool absolute) {
+    const double r = filter.Radius();
+    const int n = 200000;
+    double sum = 0;
+    for (int k = 0; k < n; ++k) {
+        double f = filter.Evaluate1D(static_cast<float>(-r + 2 * r * (k + 0.5) / n));
+        sum += absolute ? std::abs(f) : f;
+    }
+    return sum * 2 * r / n;
+}
+
+// Filter importance sampling: the offsets must follow |f| / integral of |f| (Pearson's
+// test on a 20 x 20 grid over the support), every weight must be f / pdf at its offset
+// with f's sign, and the mean weight must estimate the filter's signed integral: for
+// Mitchell 1 in 2D, while the integral of |f|, which a sampler that dropped the sign
+// would estimate, is about 1.14, over a hundred standard errors away.
+class FilterSamplerTest : public ::testing::TestWithParam<FilterType> {};
+
+TEST_P(FilterSamplerTest, OffsetsFollowTheFilterAndWeightsCarryItsSign) {
+    auto filter = MakeDefaultFilter(GetParam());
+    const auto& separable = dynamic_cast<const SeparableFilter&>(*filter);
+    const FilterSampler sampler(*filter);
+    const double r = filter->Radius();
+    const int kSamples = 400000, kCells = 20;
+    Grid grid{-r, r, -r, r, kCells, kCells};
+    std::vector<double> observed(grid.CellCount(), 0.0);
+    double weight_sum = 0, weight_sq = 0;
+    int negative = 0, checked = 0;
+    for (int i = 0; i < kSamples; ++i) {
+        const uint64_t key = Hash(0xf15, static_cast<int>(GetParam()), i);
+        const Vec2 u(UniformAt(key, 0), UniformAt(key, 1));
+        const FilterSample s = sampler.Sample(u);
+        ASSERT_LE(std::abs(s.offset.x), r);
+        ASSERT_LE(std::abs(s.offset.y), r);
+        ++observed[grid.Cell(s.offset.x, s.offset.y)];
+        weight_sum += s.weight;
+        weight_sq += double(s.weight) * s.weight;
+        negative += s.weight < 0;
+        const double f = filter->Evaluate(s.offset), pdf = sampler.Pdf(s.offset);
+        ASSERT_TRUE(std::isfinite(s.weight));
+        if (std::abs(f) > 1e-3 && pdf > 0) {
+            ++checked;
+            ASSERT_EQ(s.weight < 0, f < 0) << "offset " << s.offset.x << "," << s.offset.y;
+            ASSERT_NEAR(s.weight, f / pdf, 1e-4 * std::abs(f / pdf))
+                << "offset " << s.offset.x << "," << s.offset.y;
+        }
+        // A pure function of u.
+        const FilterSample again = sampler.Sample(u);
+        ASSERT_EQ(std::memcmp(&again, &s, sizeof(s)), 0);
+    }
+    EXPECT_GT(checked, kSamples / 2);
+
+    const std::vector<double> p = CellProbabilities1D(separable, kCells);
+    std::vector<double> expected(grid.CellCount(), 0.0);
+    for (int iy = 0; iy < kCells; ++iy)
+        for (int ix = 0; ix < kCells; ++ix) expected[iy * kCells + ix] = kSamples * p[ix] * p[iy];
+    EXPECT_TRUE(Fits(ChiSquareTest(observed, expected)));
+
+    const double integral = Sqr(static_cast<float>(Integral1D(separable, false)));
+    const double abs_integral = Sqr(static_cast<float>(Integral1D(separable, true)));
+    const double mean = weight_sum / kSamples;
+    const double se = std::sqrt(std::max(0.0, weight_sq / kSamples - mean * mean) / kSamples);
+    std::cout << TypeName(GetParam()) << ": mean weight " << mean << " +- " << se << ", integral "
+              << integral << ", integral of |f| " << abs_integral << ", negative weights "
+              << negative << "\n";
+    EXPECT_NEAR(mean, integral, 5 * se + 1e-6 * integral);
+    if (GetParam() == FilterType::kMitchell) {
+        EXPECT_GT(negative, 0);
+        EXPECT_GT(std::abs(abs_integral - integral), 20 * se);
+    } else {
+        EXPECT_EQ(negative, 0);
+    }
+    if (GetParam() == FilterType::kBox || GetParam() == FilterType::kTent) {
+        // Closed-form inversion: every weight is the integral itself.
+        EXPECT_EQ(se, 0.0);
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(AllFilters, FilterSamplerTest,
+                         ::testing::Values(FilterType::kBox, FilterType::kGaussian,
+                                           FilterType::kMitchell, FilterType::kTent),
+                         [](const auto& info) { return std::string(TypeName(info.param)); });
+
+// Synthetic importance-sampled frame: each pixel's samples get offsets from the sampler
+// and land in that pixel only.
+Image RenderImportanceTiled(Vec2i res, int tile_size, const Filter& filter) {
+    const FilterSampler sampler(filter);
+    Film film(res);
+    for (const PixelBounds& tile : MakeTiles(res, tile_size)) {
+        TileFilm tile_film(tile, res, filter, FilterSampling::kImportance);
+        Vec2 p;
+        SampleValue v;
+        for (int y = tile.lo.y; y < tile.hi.y; ++y)
+            for (int x = tile.lo.x; x < tile.hi.x; ++x)
+                for (int s = 0; s < kSpp; ++s) {
+                    SyntheticSample(x, y, s, &p, &v);
+                    const FilterSample fs = sampler.Sample({p.x - x, p.y - y});
+                    tile_film.AddPixelSample({x, y}, fs.weight, v);
+                }
+        film.Merge(tile_film);
+    }
+    return film.Resolve();
+}
+
+// With importance sampling every pixel's sums come from its own tile alone, in the same
+// order: any tiling gives the same bits, for every filter.
+TEST(FilmTest, ImportanceSampledTilingsAreBitIdentical) {
+    const Vec2i res(61, 47);
+    for (FilterType type :
+         {FilterType::kBox, FilterType::kGaussian, FilterType::kMitchell, FilterType::kTent}) {
+        SCOPED_TRACE(TypeName(type));
+        auto filter = MakeDefaultFilter(type);
+        const Image whole = RenderImportanceTiled(res, 64, *filter);
+        for (int tile_size : {1, 8, 13, 16}) {
+            const Image image = RenderImportanceTiled(res, tile_size, *filter);
+            ASSERT_EQ(image.pixels.size(), whole.pixels.size());
+            EXPECT_EQ(std::memcmp(image.pixels.data(), whole.pixels.data(),
+                                  image.pixels.size() * sizeof(float)),
+                      0)
+                << "tile " << tile_size;
+        }
+    }
 }
 
 }  // namespace

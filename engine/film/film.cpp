@@ -47,9 +47,10 @@ PixelBounds TileRegion(const PixelBounds& tile, Vec2i resolution, float filter_r
     return region;
 }
 
-TileFilm::TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter)
+TileFilm::TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter,
+                   FilterSampling sampling)
     : tile_(tile), filter_(&filter), radius_(filter.Radius()) {
-    region_ = TileRegion(tile, resolution, radius_);
+    region_ = TileRegion(tile, resolution, FilmRadius(radius_, sampling));
     size_t size = static_cast<size_t>(region_.Width()) * region_.Height() * kChannels;
     data_.assign(size, 0.0f);
     sums_.assign(size, 0.0);
@@ -129,6 +130,19 @@ void TileFilm::AddSample(Vec2 p_film, const SampleValue& v) {
             if (w != 0) Accumulate(offset_of(x, y), w, values);
         }
     }
+}
+
+void TileFilm::AddPixelSample(Vec2i pixel, float weight, const SampleValue& v) {
+    if (pixel.x < region_.lo.x || pixel.x >= region_.hi.x || pixel.y < region_.lo.y ||
+        pixel.y >= region_.hi.y || !std::isfinite(weight))
+        return;
+    const double values[kWeightChannel] = {v.L.r,      v.L.g,      v.L.b,      v.albedo.r,
+                                           v.albedo.g, v.albedo.b, v.normal.x, v.normal.y,
+                                           v.normal.z, v.depth};
+    Accumulate(
+        (static_cast<size_t>(pixel.y - region_.lo.y) * region_.Width() + (pixel.x - region_.lo.x)) *
+            kChannels,
+        weight, values);
 }
 
 Film::Film(Vec2i resolution) : resolution_(resolution) {

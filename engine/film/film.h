@@ -4,9 +4,12 @@
 // tile grown by the filter's radius (its apron), so a sample near a tile border reaches
 // its neighbours' pixels too. The Film sums tile films in a fixed order and divides by
 // the filter weights: the assembled image has no seams and does not depend on which
-// thread or worker rendered which tile.
+// thread or worker rendered which tile. With filter importance sampling a sample reaches
+// only its own pixel, the apron is empty and every pixel's sums come from one tile.
 
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "core/color.h"
@@ -15,15 +18,40 @@
 
 namespace tessera {
 
-enum class FilterType { kBox, kGaussian, kMitchell };
+// New types go last: the settings codec stores the enumerator's value.
+enum class FilterType { kBox, kGaussian, kMitchell, kTent };
+
+// How camera samples reach the pixels.
+enum class FilterSampling {
+    // Each sample's position is uniform in its pixel and the sample is weighted into every
+    // pixel whose filter footprint holds it.
+    kSplat,
+    // Each sample's offset from its pixel's centre is drawn from the filter itself (Ernst
+    // et al. 2006) and the sample reaches only its own pixel, with weight f / pdf (the
+    // filter's integral for a non-negative filter; signed for Mitchell's lobes). Tiles
+    // then need no apron.
+    kImportance,
+};
+
+// What a render uses when neither the scene nor the command line says.
+inline constexpr FilterSampling kDefaultFilterSampling = FilterSampling::kSplat;
 
 struct FilterSettings {
     FilterType type = FilterType::kBox;
-    // Radius in pixels; <= 0 picks the type's default (box 0.5, Gaussian 1.5, Mitchell 2).
+    // Radius in pixels; <= 0 picks the type's default (box 0.5, Gaussian 1.5, Mitchell 2,
+    // tent 1).
     float radius = 0;
     float gaussian_sigma = 0.5f;
     float mitchell_b = 1.0f / 3.0f, mitchell_c = 1.0f / 3.0f;
+    FilterSampling sampling = kDefaultFilterSampling;
 };
+
+// "box", "gaussian", "mitchell", "tent" and "splat", "importance": the names the scene
+// format, the command line and the settings codec use.
+const char* FilterTypeName(FilterType type);
+std::optional<FilterType> ParseFilterType(const std::string& name);
+const char* FilterSamplingName(FilterSampling sampling);
+std::optional<FilterSampling> ParseFilterSampling(const std::string& name);
 
 class Filter {
   public:
@@ -36,6 +64,11 @@ class Filter {
 std::unique_ptr<Filter> MakeFilter(const FilterSettings& settings);
 // The radius MakeFilter(settings) would have, without making the filter.
 float FilterRadius(const FilterSettings& settings);
+// How far past its own pixel a sample reaches, in pixels: the filter's radius when
+// splatting, 0 with importance sampling. Tile films and the render plan's tile regions
+// both take their apron from here, so workers and the assembler agree on them.
+float FilmRadius(float filter_radius, FilterSampling sampling);
+float FilmRadius(const FilterSettings& settings);
 
 // What the integrator returns for one camera sample.
 struct SampleValue {
@@ -69,9 +102,15 @@ class TileFilm {
     // the weight sum.
     static constexpr int kChannels = 11;
 
-    TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter);
-    // p_film in raster coordinates; the sample must lie inside the tile.
+    // With FilterSampling::kImportance the film holds the tile alone (no apron) and takes
+    // its samples through AddPixelSample.
+    TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filter,
+             FilterSampling sampling = FilterSampling::kSplat);
+    // Splatting: p_film in raster coordinates; the sample must lie inside the tile.
     void AddSample(Vec2 p_film, const SampleValue& v);
+    // Importance sampling: adds `v` with `weight` (f / pdf of the sample's filter offset)
+    // to `pixel` alone. Pixels outside Region() and non-finite weights are dropped.
+    void AddPixelSample(Vec2i pixel, float weight, const SampleValue& v);
     // The pixels this film holds: the tile grown by the apron, clipped to the image.
     const PixelBounds& Region() const { return region_; }
     const PixelBounds& Tile() const { return tile_; }

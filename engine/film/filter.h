@@ -4,6 +4,8 @@
 // for one 1D profile per axis and multiplies, evaluating 2n weights per sample instead of
 // n^2, which matters because the film sits on the path of every camera sample.
 
+#include <vector>
+
 #include "film/film.h"
 
 namespace tessera {
@@ -48,6 +50,59 @@ class MitchellFilter final : public SeparableFilter {
 
   private:
     float radius_, b_, c_;
+};
+
+// The triangle max(0, 1 - |x| / radius) per axis. At radius 1 its unit shifts sum to one:
+// bilinear reconstruction.
+class TentFilter final : public SeparableFilter {
+  public:
+    explicit TentFilter(float radius) : radius_(radius), inv_radius_(1 / radius) {}
+    float Evaluate1D(float offset) const override;
+    float Radius() const override { return radius_; }
+
+  private:
+    float radius_, inv_radius_;
+};
+
+// An offset from a pixel's centre drawn from a filter, and the sample's weight there.
+struct FilterSample {
+    Vec2 offset;       // pixels, within [-radius, radius]^2
+    float weight = 0;  // f(offset) / pdf(offset); negative under a negative lobe
+};
+
+// Filter importance sampling: draws offsets with density proportional to |f| (Ernst et
+// al. 2006; pbrt-v4's FilterSampler), one axis at a time since our filters are separable.
+// The box and the tent are inverted in closed form and their weight is the filter's
+// integral for every sample. The Gaussian and Mitchell are sampled from a piecewise-
+// constant table of |f| per axis, fine enough that the weight f / pdf stays within a few
+// percent of the integral (Gaussian) or of +-integral of |f| (Mitchell), and exactly
+// unbiased since the pdf is the table's. Sample is a pure function of u: the same
+// (pixel, sample index) gives the same offset wherever it is rendered.
+class FilterSampler {
+  public:
+    // Throws std::invalid_argument for a filter that is not separable.
+    explicit FilterSampler(const Filter& filter);
+    // u in [0, 1)^2, e.g. the sampler's pixel dimensions.
+    FilterSample Sample(Vec2 u) const;
+    // The density of Sample's offsets at `offset` (0 outside the support).
+    double Pdf(Vec2 offset) const;
+
+  private:
+    enum class Kind { kUniform, kTent, kTable };
+    struct Axis {
+        float offset = 0;
+        double pdf = 0;
+    };
+    Axis Sample1D(float u) const;
+    double Pdf1D(float offset) const;
+
+    const SeparableFilter* filter_;
+    Kind kind_;
+    float radius_;
+    // kTable: bin i covers [-radius + i * bin_width, -radius + (i + 1) * bin_width]; its
+    // density is pdf_[i] and cdf_[i] is the probability of the bins before it.
+    double bin_width_ = 0;
+    std::vector<double> pdf_, cdf_;
 };
 
 }  // namespace tessera
