@@ -46,6 +46,71 @@ TEST(SphereLight, SmallDistantSphereKeepsPrecision) {
     EXPECT_NEAR(Distance(s->p_light, Vec3(10, 0, 0)), 0.05, 1e-4);
 }
 
+// Small, distant spheres, sampled right up to the silhouette (u.x -> 1): every point
+// lies on the sphere and on the cap the receiver sees, wi points at it, and its angle
+// from the axis is the one uniform cone sampling asks for: sin^2 theta / sin^2 theta_max
+// = u.x (1 + cos theta) / (1 + cos theta_max).
+TEST(SphereLight, SamplesLieOnTheVisibleCapUpToTheSilhouette) {
+    struct Case {
+        Vec3 centre;
+        float radius;
+    };
+    for (Case c : {Case{Vec3(0, 10, 0), 0.01f}, Case{Vec3(3, 9, 2), 0.05f},
+                   Case{Vec3(0.8f, 2, 0.6f), 1.0f}, Case{Vec3(40, -30, 100), 0.02f}}) {
+        SCOPED_TRACE(c.radius);
+        auto light = MakeSphereAreaLight(c.centre, c.radius, Rgb(1), false);
+        LightSampleContext ctx{Vec3(0.1f, 0, -0.2f), Vec3(0, 1, 0)};
+        const double d2 = LengthSquared(c.centre - ctx.p), r2 = double(c.radius) * c.radius;
+        const double sin2_max = r2 / d2, cos_max = std::sqrt(1 - sin2_max);
+        for (float ux : {0.0f, 0.25f, 0.5f, 0.9f, 0.999f, 0.99999f, kOneMinusEpsilon}) {
+            for (float uy : {0.0f, 0.3f, 0.77f}) {
+                auto s = light->SampleLi(ctx, Vec2(ux, uy));
+                ASSERT_TRUE(s);
+                // Float rounding of a point at distance |centre| from the origin.
+                const float tol = 4e-7f * Length(c.centre) / c.radius;
+                Vec3 n = (s->p_light - c.centre) / c.radius;
+                EXPECT_NEAR(Length(n), 1, tol);
+                // Facing the receiver: not hidden behind the sphere's own silhouette.
+                EXPECT_GE(Dot(n, Normalize(ctx.p - s->p_light)), -tol)
+                    << "u = " << ux << ", " << uy;
+                Vec3 to_p = s->p_light - ctx.p;
+                EXPECT_GT(Dot(s->wi, Normalize(to_p)), 1 - 1e-6f);
+                // The sampled angle, in double from the points themselves.
+                double px = to_p.x, py = to_p.y, pz = to_p.z;
+                double ax = c.centre.x - ctx.p.x, ay = c.centre.y - ctx.p.y,
+                       az = c.centre.z - ctx.p.z;
+                double cx = py * az - pz * ay, cy = pz * ax - px * az, cz = px * ay - py * ax;
+                double sin2 = (cx * cx + cy * cy + cz * cz) /
+                              ((px * px + py * py + pz * pz) * (ax * ax + ay * ay + az * az));
+                double one_minus_cos = ux * sin2_max / (1 + cos_max);
+                double expected = ux * (2 - one_minus_cos) / (1 + cos_max);
+                EXPECT_NEAR(sin2 / sin2_max, expected, 2e-3) << "u = " << ux << ", " << uy;
+                EXPECT_FLOAT_EQ(s->pdf, light->PdfLi(ctx, s->wi, s->p_light, n));
+            }
+        }
+    }
+}
+
+// Within float error of the surface, from either side, the sphere is sampled by area over
+// all of it (which side the receiver is on is unclear there); the shadow ray then tests
+// the sphere itself (Scene::Occluded, checked in known_answer_test).
+TEST(SphereLight, AreaSamplingNearTheSurfaceCoversTheWholeSphere) {
+    auto light = MakeSphereAreaLight(Vec3(0, 0, 0), 1, Rgb(1), true);
+    int outside = 0, inside = 0, far_side = 0;
+    for (int i = 0; i < 1000; ++i) {
+        LightSampleContext ctx{Vec3(0, 0, 1.00002f), Vec3(0, 0, 1)};
+        if (auto s = light->SampleLi(ctx, U2(i))) {
+            ++outside;
+            far_side += s->p_light.z < 0;
+            EXPECT_NEAR(Length(s->p_light), 1.0f, 1e-5f);
+        }
+        inside += light->SampleLi({Vec3(0, 0, 0.99998f), Vec3(0, 0, 1)}, U2(i)).has_value();
+    }
+    EXPECT_GE(outside, 990);
+    EXPECT_GT(far_side, 400);
+    EXPECT_EQ(inside, 1000);
+}
+
 TEST(SphereLight, PdfMatchesSampleOutsideAndInside) {
     auto light = MakeSphereAreaLight(Vec3(0, 0, 0), 1, Rgb(1), true);
     for (Vec3 p : {Vec3(0, 0, 4), Vec3(0.2f, -0.3f, 0.1f)}) {

@@ -126,24 +126,34 @@ class SphereAreaLight final : public Light {
         float dist2 = DistanceSquared(ctx.p, center_);
         float r2 = radius_ * radius_;
         if (dist2 <= r2 * 1.0001f) return SampleByArea(ctx, u);
-        // Uniform over the cone of directions the sphere subtends. 1 - cos is computed
-        // as sin^2 / (1 + cos) so that small, distant lights keep their precision.
-        float dist = std::sqrt(dist2);
+        // Uniform over the cone of directions the sphere subtends (half-angle theta_max,
+        // sin^2 theta_max = r^2 / d^2). The point is not found by intersecting the
+        // sampled direction with the sphere: near the silhouette that intersection is
+        // ill-conditioned (its discriminant vanishes) and float error moves the point
+        // off the visible cap. Instead the triangle (receiver, centre, point) gives the
+        // angle alpha at the centre in closed form, and the point is centre + r * n.
+        // Everything is written in terms of 1 - cos theta and s = sin^2 theta /
+        // sin^2 theta_max in [0, 1], which stay exact for small, distant spheres.
         float sin2_max = r2 / dist2;
+        float sin_max = std::sqrt(sin2_max);
         float cos_max = SafeSqrt(1 - sin2_max);
         float one_minus_cos_max = sin2_max / (1 + cos_max);
         float one_minus_cos = u.x * one_minus_cos_max;
         float cos_theta = 1 - one_minus_cos;
-        float sin_theta = SafeSqrt(one_minus_cos * (2 - one_minus_cos));
+        // sin^2 theta = (1 - cos)(1 + cos), divided by (1 - cos_max)(1 + cos_max).
+        float s = std::clamp(u.x * (1 + cos_theta) / (1 + cos_max), 0.0f, 1.0f);
+        // The ray at angle theta passes d sin theta from the centre and enters the sphere
+        // at distance t = d cos theta - r sqrt(1 - s); the law of sines (sin alpha / t =
+        // sin theta / r) and the projection on the axis give, with no cancellation:
+        float root = std::sqrt(1 - s);
+        float cos_alpha = sin_max * s + cos_theta * root;
+        float sin_alpha = std::max(0.0f, std::sqrt(s) * (cos_theta - sin_max * root));
         float phi = 2 * kPi * u.y;
-        Frame frame((center_ - ctx.p) / dist);
-        Vec3 wi = frame.ToWorld(SphericalDirection(sin_theta, cos_theta, phi));
-        // The nearer intersection of the ray with the sphere, in double for precision.
-        double b = Dot(ctx.p - center_, wi);
-        double c = double(dist2) - r2;
-        double disc = b * b - c;
-        double t = -b - std::sqrt(std::max(0.0, disc));
-        Vec3 p_light = ctx.p + wi * static_cast<float>(t);
+        // The frame's z axis points from the centre back to the receiver.
+        Frame frame((ctx.p - center_) / std::sqrt(dist2));
+        Vec3 n = Normalize(frame.ToWorld(SphericalDirection(sin_alpha, cos_alpha, phi)));
+        Vec3 p_light = center_ + n * radius_;
+        Vec3 wi = Normalize(p_light - ctx.p);
         float pdf = 1 / (2 * kPi * one_minus_cos_max);
         return LightLiSample{radiance_, wi, pdf, p_light};
     }
@@ -181,6 +191,9 @@ class SphereAreaLight final : public Light {
   private:
     float Area() const { return 4 * kPi * radius_ * radius_; }
 
+    // From inside, or within float error of the surface (where the receiver's side is
+    // unclear): uniform by area; the shadow ray then tests the sphere itself
+    // (Scene::Occluded), which hides the far side from a receiver just outside.
     std::optional<LightLiSample> SampleByArea(const LightSampleContext& ctx, Vec2 u) const {
         Vec3 n = SampleUniformSphere(u);
         return AreaSampleToSolidAngle(ctx, center_ + n * radius_, n, Area(), two_sided_, radiance_);

@@ -17,11 +17,16 @@ LightSampler::LightSampler(const std::vector<const Light*>& lights) : lights_(li
 
 const Light* LightSampler::Sample(float u, float* pmf) const {
     if (lights_.empty()) return nullptr;
+    if (lights_.size() == 1) {  // the common case, without a search
+        if (pmf) *pmf = 1;
+        return lights_[0];
+    }
     int i = distribution_.SampleDiscrete(u, pmf);
     return lights_[i];
 }
 
 float LightSampler::Pmf(const Light* light) const {
+    if (lights_.size() == 1) return light == lights_[0] ? 1.0f : 0.0f;
     auto it = index_.find(light);
     return it == index_.end() ? 0 : distribution_.DiscretePmf(it->second);
 }

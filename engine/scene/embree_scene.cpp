@@ -34,20 +34,56 @@ void FillTriangles(RTCDevice device, RTCGeometry geom, const TriangleMesh& mesh)
     rtcCommitGeometry(geom);
 }
 
+// An intersection context that rejects every hit on one root geometry. The context
+// must come first: Embree hands the filter a pointer to it.
+struct IgnoringContext {
+    RTCIntersectContext context;
+    unsigned ignored;
+};
+
+void RejectIgnoredGeometry(const RTCFilterFunctionNArguments* args) {
+    const auto* ctx = reinterpret_cast<const IgnoringContext*>(args->context);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] == 0) continue;
+        if (RTCHitN_geomID(args->hit, args->N, i) == ctx->ignored &&
+            RTCHitN_instID(args->hit, args->N, i, 0) == RTC_INVALID_GEOMETRY_ID)
+            args->valid[i] = 0;
+    }
+}
+
+RTCRay MakeRay(const Ray& ray, float t_max) {
+    RTCRay r;
+    r.org_x = ray.o.x;
+    r.org_y = ray.o.y;
+    r.org_z = ray.o.z;
+    r.tnear = 0;
+    r.dir_x = ray.d.x;
+    r.dir_y = ray.d.y;
+    r.dir_z = ray.d.z;
+    r.time = ray.time;
+    r.tfar = t_max;
+    r.mask = ~0u;
+    r.id = 0;
+    r.flags = 0;
+    return r;
+}
+
 }  // namespace
 
 struct EmbreeScene::Handles {
     RTCDevice device = nullptr;
     RTCScene root = nullptr;
     std::vector<RTCScene> prototypes;
+    bool ignoring = false;
 };
 
 EmbreeScene::EmbreeScene() : h_(std::make_unique<Handles>()) {
-    // Embree's AVX-512 kernels measured 4x slower than its AVX2 kernels on our 2-core
-    // machines (bench_cornell: 3.4 vs 13.9 M incoherent rays/s), and one kernel family
-    // across a farm of mixed CPUs also keeps ray results alike; so AVX2 is the default
-    // ceiling. TESSERA_EMBREE_CONFIG replaces it with any Embree device configuration
-    // (e.g. "max_isa=sse4.2", or "" for Embree's own choice).
+    // AVX2 is the ceiling of Embree's kernels by default: one kernel family across a farm
+    // of mixed CPUs keeps ray results, and so images, alike between workers. On an AVX2
+    // machine (bench/run_pt.sh, interleaved runs) Embree's own choice renders at the same
+    // speed and SSE4.2 about 7% slower; what AVX-512 kernels would gain is to be measured
+    // on a CPU that has them. TESSERA_EMBREE_CONFIG replaces the ceiling with any Embree
+    // device configuration (e.g. "max_isa=sse4.2", or "" for Embree's own choice).
     const char* config = std::getenv("TESSERA_EMBREE_CONFIG");
     h_->device = rtcNewDevice(config ? config : "max_isa=avx2");
     if (!h_->device) throw std::runtime_error("cannot create the Embree device");
@@ -119,7 +155,12 @@ unsigned EmbreeScene::AddInstance(int prototype, const Transform& object_to_worl
     return id;
 }
 
+void EmbreeScene::EnableIgnoring() { h_->ignoring = true; }
+
 void EmbreeScene::Commit() {
+    // Context filters let a shadow ray ignore the light it is aimed at.
+    if (h_->ignoring)
+        rtcSetSceneFlags(h_->root, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     for (RTCScene s : h_->prototypes) rtcCommitScene(s);
     rtcCommitScene(h_->root);
     RTCError err = rtcGetDeviceError(h_->device);
@@ -160,21 +201,19 @@ bool EmbreeScene::Intersect(const Ray& ray, float t_max, RawHit* hit) const {
 bool EmbreeScene::Occluded(const Ray& ray, float t_max) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    RTCRay r;
-    r.org_x = ray.o.x;
-    r.org_y = ray.o.y;
-    r.org_z = ray.o.z;
-    r.tnear = 0;
-    r.dir_x = ray.d.x;
-    r.dir_y = ray.d.y;
-    r.dir_z = ray.d.z;
-    r.time = ray.time;
-    r.tfar = t_max;
-    r.mask = ~0u;
-    r.id = 0;
-    r.flags = 0;
+    RTCRay r = MakeRay(ray, t_max);
     rtcOccluded1(h_->root, &context, &r);
     return r.tfar < 0;  // Embree sets tfar to -inf on a hit
+}
+
+bool EmbreeScene::OccludedIgnoring(const Ray& ray, float t_max, unsigned ignored) const {
+    IgnoringContext ctx;
+    rtcInitIntersectContext(&ctx.context);
+    ctx.context.filter = RejectIgnoredGeometry;
+    ctx.ignored = ignored;
+    RTCRay r = MakeRay(ray, t_max);
+    rtcOccluded1(h_->root, &ctx.context, &r);
+    return r.tfar < 0;
 }
 
 }  // namespace tessera

@@ -37,10 +37,16 @@ class EmbreeScene {
     // Returns the geometry id inside the prototype's scene.
     unsigned AddTrianglesToPrototype(int prototype, const TriangleMesh& mesh);
     unsigned AddInstance(int prototype, const Transform& object_to_world);
+    // Makes OccludedIgnoring possible. The root scene then calls context filters, which
+    // only scenes that need them should pay for.
+    void EnableIgnoring();
     void Commit();
 
     bool Intersect(const Ray& ray, float t_max, RawHit* hit) const;
     bool Occluded(const Ray& ray, float t_max) const;
+    // As Occluded, but hits on the root geometry `ignored` do not count. Needs
+    // EnableIgnoring() before Commit().
+    bool OccludedIgnoring(const Ray& ray, float t_max, unsigned ignored) const;
 
   private:
     struct Handles;

@@ -62,7 +62,12 @@ void Scene::AddSphere(const Vec3& center, float radius, const Material* material
             MakeSphereAreaLight(center, radius, emission->radiance, emission->two_sided));
         shape->light = lights_.back().get();
     }
-    StoreShape(root_shapes_, embree_->AddSphere(center, radius), std::move(shape));
+    unsigned id = embree_->AddSphere(center, radius);
+    if (shape->light) {
+        convex_light_geometry_[shape->light] = ConvexLightShape{id, center, radius};
+        embree_->EnableIgnoring();
+    }
+    StoreShape(root_shapes_, id, std::move(shape));
 }
 
 int Scene::AddPrototype() {
@@ -209,6 +214,17 @@ bool Scene::Occluded(const Vec3& p0, const Vec3& p1) const {
     ++t_ray_count;
     Ray ray{p0, p1 - p0, 0};
     return embree_->Occluded(ray, 1 - 1e-4f);
+}
+
+bool Scene::Occluded(const Vec3& p0, const Vec3& p1, const Light* light) const {
+    auto it = convex_light_geometry_.find(light);
+    if (it == convex_light_geometry_.end()) return Occluded(p0, p1);
+    const ConvexLightShape& sphere = it->second;
+    // The band SphereAreaLight::SampleLi samples by area (area_light.cpp).
+    if (DistanceSquared(p0, sphere.center) <= Sqr(sphere.radius) * 1.0001f) return Occluded(p0, p1);
+    ++t_ray_count;
+    Ray ray{p0, p1 - p0, 0};
+    return embree_->OccludedIgnoring(ray, 1 - 1e-4f, sphere.geometry);
 }
 
 bool Scene::OccludedRay(const Ray& ray, float t_max) const {

@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "camera/camera.h"
@@ -56,6 +57,16 @@ class Scene {
     bool IntersectRaw(const Ray& ray, float* t) const;
     // Whether anything blocks the segment from p0 to p1 (both ends excluded).
     bool Occluded(const Vec3& p0, const Vec3& p1) const;
+    // For a shadow ray toward p1, a point that light->SampleLi chose: whether anything
+    // blocks the segment, not counting the light's own shape when that shape is convex
+    // (a sphere). SampleLi only returns points on the part of a sphere that the receiver
+    // sees, so the sphere cannot block the segment; testing it anyway would let float
+    // error near its silhouette (of the sampled point, of Embree's hit distance, of the
+    // ray origin's offset) turn light into shadow, a loss that grows as the sphere
+    // shrinks. A shadow ray from inside the sphere, or from within float error of its
+    // surface (where SampleLi samples the whole sphere by area), does test the sphere.
+    // Any other light, or none, is tested like Occluded(p0, p1).
+    bool Occluded(const Vec3& p0, const Vec3& p1, const Light* light) const;
     // Whether anything blocks the ray within (0, t_max).
     bool OccludedRay(const Ray& ray, float t_max) const;
 
@@ -81,6 +92,14 @@ class Scene {
     std::vector<Bounds3> prototype_bounds_;
     std::vector<std::unique_ptr<Material>> materials_;
     std::vector<std::unique_ptr<Light>> lights_;
+    // Each light whose shape cannot block its own samples seen from outside: a sphere,
+    // its root geometry id, centre and radius.
+    struct ConvexLightShape {
+        unsigned geometry;
+        Vec3 center;
+        float radius;
+    };
+    std::unordered_map<const Light*, ConvexLightShape> convex_light_geometry_;
     std::vector<const Light*> infinite_lights_;
     std::unique_ptr<LightSampler> light_sampler_;
     std::unique_ptr<Camera> camera_;
