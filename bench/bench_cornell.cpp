@@ -4,20 +4,13 @@
 //
 //   bench_cornell [--spp N] [--threads N] [--size N] [--scene PATH]
 
-#include <pmmintrin.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-#include <xmmintrin.h>
-
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <string>
 
-#include "core/rng.h"
-#include "core/sampling.h"
 #include "plan/local_runner.h"
+#include "raw_embree.h"
 #include "scene/scene_loader.h"
 
 using namespace tessera;
@@ -28,34 +21,13 @@ double Seconds(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Random rays from points inside the scene's bounds in uniformly random directions:
-// the least coherent workload Embree sees.
-double RawEmbreeRaysPerSecond(const Scene& scene, int threads, uint64_t count) {
-    const Bounds3 b = scene.Bounds();
-    std::atomic<uint64_t> hits{0};
+double RawEmbree(const Scene& scene, int threads, uint64_t count) {
     auto start = std::chrono::steady_clock::now();
-    tbb::task_arena arena(threads);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, 4096), [&](const auto& r) {
-            _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-            _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-            uint64_t local = 0;
-            for (uint64_t i = r.begin(); i != r.end(); ++i) {
-                uint64_t key = Hash(i, 7);
-                Vec3 o(Lerp(UniformAt(key, 0), b.lo.x, b.hi.x),
-                       Lerp(UniformAt(key, 1), b.lo.y, b.hi.y),
-                       Lerp(UniformAt(key, 2), b.lo.z, b.hi.z));
-                Vec3 d = SampleUniformSphere(Vec2(UniformAt(key, 3), UniformAt(key, 4)));
-                float t;
-                local += scene.IntersectRaw(Ray{o, d, 0}, &t);
-            }
-            hits += local;
-        });
-    });
-    double s = Seconds(start);
+    double hit = 0;
+    double rate = bench::RawEmbreeRaysPerSecond(scene, threads, count, &hit);
     std::printf("  raw Embree:  %llu rays, %.1f%% hit, %.2f s\n", (unsigned long long)count,
-                100.0 * hits / count, s);
-    return count / s;
+                100.0 * hit, Seconds(start));
+    return rate;
 }
 
 }  // namespace
@@ -97,7 +69,7 @@ int main(int argc, char** argv) {
     std::printf("  renderer:    %.2f s, %.0f camera samples/s, %.2f M rays/s (%.2f rays/sample)\n",
                 s, samples / s, render_rays * 1e-6, rays / samples);
 
-    double raw = RawEmbreeRaysPerSecond(*loaded.scene, threads, 20'000'000);
+    double raw = RawEmbree(*loaded.scene, threads, 20'000'000);
     std::printf("  raw Embree:  %.2f M rays/s (rtcIntersect1, incoherent)\n", raw * 1e-6);
     std::printf("  ratio renderer/raw ray rate: %.2f\n", render_rays / raw);
     double mean = 0;

@@ -61,8 +61,17 @@ void RenderFlags::AddTo(CLI::App& cmd) {
                    "Debug image: photons (the photon maps drawn), records (cache record "
                    "positions), indirect (indirect light only)")
         ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
-    cmd.add_option("--sampler", sampler, "Pixel sampler: stratified or independent")
-        ->check(CLI::IsMember({"stratified", "independent"}));
+    cmd.add_option("--sampler", sampler,
+                   "Pixel sampler: stratified, independent or sobol (Owen-scrambled Sobol)")
+        ->check(CLI::IsMember(SamplerTypeNames()));
+    cmd.add_option("--filter", filter,
+                   "Pixel filter: box, gaussian, mitchell or tent, at its default radius "
+                   "(replaces the scene's filter when the type differs)")
+        ->check(CLI::IsMember({"box", "gaussian", "mitchell", "tent"}));
+    cmd.add_option("--filter-sampling", filter_sampling,
+                   "How samples reach pixels: splat (weighted into every pixel the filter "
+                   "covers) or importance (offsets drawn from the filter, one pixel each)")
+        ->check(CLI::IsMember({"splat", "importance"}));
     cmd.add_option("--max-depth", max_depth, "Maximum path length in bounces")
         ->check(CLI::NonNegativeNumber);
     cmd.add_option("--seed", seed, "Seed of every random stream");
@@ -83,7 +92,9 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     if (cmd.count("--seed")) o.seed = seed;
     if (cmd.count("--integrator")) o.integrator = integrator;
     if (cmd.count("--sampler"))
-        o.sampler = sampler == "independent" ? SamplerType::kIndependent : SamplerType::kStratified;
+        o.sampler = ParseSamplerType(sampler).value();  // checked by --sampler's IsMember
+    if (cmd.count("--filter")) o.filter = ParseFilterType(filter);
+    if (cmd.count("--filter-sampling")) o.filter_sampling = ParseFilterSampling(filter_sampling);
     if (cmd.count("--irradiance-cache")) o.irradiance_cache = true;
     if (cmd.count("--photons")) o.photons_global = photons;
     if (cmd.count("--caustic-photons")) o.photons_caustic = caustic_photons;

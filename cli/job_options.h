@@ -22,6 +22,7 @@ struct RenderFlags {
     int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
     float ic_accuracy = 0;
     std::string debug;
+    std::string filter, filter_sampling;
 
     void AddTo(CLI::App& cmd);
     // The options `cmd` was given.

@@ -14,12 +14,20 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
     if (o.has_width()) r.width = o.width();
     if (o.has_height()) r.height = o.height();
     if (o.has_sampler()) {
-        if (o.sampler() == "stratified")
-            r.sampler = SamplerType::kStratified;
-        else if (o.sampler() == "independent")
-            r.sampler = SamplerType::kIndependent;
-        else
-            throw std::invalid_argument("unknown sampler '" + o.sampler() + "'");
+        r.sampler = ParseSamplerType(o.sampler());
+        if (!r.sampler) throw std::invalid_argument("unknown sampler '" + o.sampler() + "'");
+    }
+    if (o.has_filter()) {
+        r.filter = ParseFilterType(o.filter());
+        if (!r.filter)
+            throw std::invalid_argument("unknown filter '" + o.filter() +
+                                        "' (known: box, gaussian, mitchell, tent)");
+    }
+    if (o.has_filter_sampling()) {
+        r.filter_sampling = ParseFilterSampling(o.filter_sampling());
+        if (!r.filter_sampling)
+            throw std::invalid_argument("unknown filter sampling '" + o.filter_sampling() +
+                                        "' (known: splat, importance)");
     }
     if (o.has_irradiance_cache()) r.irradiance_cache = o.irradiance_cache();
     if (o.has_photons_global()) r.photons_global = o.photons_global();
@@ -47,8 +55,9 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.tile_size) o.set_tile_size(*r.tile_size);
     if (r.width) o.set_width(*r.width);
     if (r.height) o.set_height(*r.height);
-    if (r.sampler)
-        o.set_sampler(*r.sampler == SamplerType::kStratified ? "stratified" : "independent");
+    if (r.sampler) o.set_sampler(SamplerTypeName(*r.sampler));
+    if (r.filter) o.set_filter(FilterTypeName(*r.filter));
+    if (r.filter_sampling) o.set_filter_sampling(FilterSamplingName(*r.filter_sampling));
     if (r.irradiance_cache) o.set_irradiance_cache(*r.irradiance_cache);
     if (r.photons_global) o.set_photons_global(*r.photons_global);
     if (r.photons_caustic) o.set_photons_caustic(*r.photons_caustic);

@@ -252,7 +252,7 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     job.settings.tile_size = s.tile_size;
     job.settings.seed = s.seed;
     job.settings.integrator = s.integrator;
-    job.settings.sampler = s.sampler == SamplerType::kStratified ? "stratified" : "independent";
+    job.settings.sampler = SamplerTypeName(s.sampler);
     job.settings.scene_name = fs::path(spec.scene_path()).filename().string();
     job.spec = spec.SerializeAsString();
     return planned;

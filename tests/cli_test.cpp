@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -14,6 +16,8 @@
 #include <vector>
 
 #include "io/image_io.h"
+#include "plan/local_runner.h"
+#include "scene/scene_loader.h"
 
 namespace tessera {
 namespace {
@@ -264,6 +268,143 @@ TEST_F(CliTest, BadCommandLineValueIsRejected) {
     EXPECT_NE(0,
               Run("render " + kFurnace + " -q --integrator nope -o " + (dir_ / "x.exr").string()));
     EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+}
+
+// --- pixel values ----------------------------------------------------------------------
+
+const std::string kCornell = std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json";
+
+// Every value of `channel` in `image`.
+std::vector<float> Channel(const Image& image, const std::string& channel) {
+    const int c = image.ChannelIndex(channel);
+    EXPECT_GE(c, 0) << channel;
+    std::vector<float> out;
+    if (c < 0) return out;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) out.push_back(image.At(x, y, c));
+    return out;
+}
+
+// White furnace: a diffuse sphere of albedo 1 under a uniform environment of radiance 1
+// reflects exactly what it receives, so every pixel's expected value is 1 (background
+// pixels are 1 exactly). The sphere's pixels are means of `spp` independent path samples
+// (box filter: no sample reaches two pixels). The bound on each pixel is 6 standard
+// deviations of such a mean, the per-sample deviation estimated from a 1-spp render of the
+// same scene; the bound on the image's mean, 4 standard deviations of that mean. Energy
+// lost or gained anywhere (a bounce that absorbs, a double-counted light) moves the mean
+// far beyond its bound.
+TEST_F(CliTest, WhiteFurnaceIsOneInEveryPixel) {
+    const std::string size = " --width 32 --height 32 --seed 3 -q";
+    ASSERT_EQ(0, Run("render " + kFurnace + size + " --spp 1 -o " + (dir_ / "one.exr").string()))
+        << err_;
+    constexpr int kSpp = 64;
+    ASSERT_EQ(0, Run("render " + kFurnace + size + " --spp " + std::to_string(kSpp) + " -o " +
+                     (dir_ / "many.exr").string()))
+        << err_;
+    const Image one = ReadImage((dir_ / "one.exr").string());
+    const Image many = ReadImage((dir_ / "many.exr").string());
+    ASSERT_EQ(many.width, 32);
+    ASSERT_EQ(many.height, 32);
+    for (const char* channel : {"R", "G", "B"}) {
+        SCOPED_TRACE(channel);
+        // The per-sample deviation over the sphere's pixels (those that are not exactly 1).
+        double sum_sq = 0;
+        int sphere = 0;
+        for (float v : Channel(one, channel)) {
+            if (v == 1.0f) continue;
+            sum_sq += (double(v) - 1) * (double(v) - 1);
+            ++sphere;
+        }
+        ASSERT_GT(sphere, 100) << "the sphere covers a good part of the image";
+        const double sample_sigma = std::sqrt(sum_sq / sphere);
+        EXPECT_GT(sample_sigma, 0);
+        const double pixel_sigma = sample_sigma / std::sqrt(double(kSpp));
+        const std::vector<float> values = Channel(many, channel);
+        double sum = 0;
+        for (size_t i = 0; i < values.size(); ++i) {
+            ASSERT_TRUE(std::isfinite(values[i])) << i;
+            EXPECT_NEAR(values[i], 1.0, 6 * pixel_sigma) << "pixel " << i;
+            sum += values[i];
+        }
+        const double mean = sum / double(values.size());
+        EXPECT_NEAR(mean, 1.0, 4 * pixel_sigma / std::sqrt(double(values.size())));
+        std::printf("furnace %s: mean %.6f, per-sample sigma %.4f, pixel bound %.4f\n", channel,
+                    mean, sample_sigma, 6 * pixel_sigma);
+    }
+}
+
+// `tessera render` writes exactly the image that the engine renders in this process with
+// the same scene and settings: every channel, bit for bit.
+void ExpectSameImage(const Image& a, const Image& b) {
+    ASSERT_EQ(a.width, b.width);
+    ASSERT_EQ(a.height, b.height);
+    for (const std::string& channel : b.channels) {
+        SCOPED_TRACE(channel);
+        const std::vector<float> va = Channel(a, channel), vb = Channel(b, channel);
+        ASSERT_EQ(va.size(), vb.size());
+        EXPECT_EQ(0, std::memcmp(va.data(), vb.data(), va.size() * sizeof(float)));
+    }
+    EXPECT_EQ(a.channels.size(), b.channels.size());
+}
+
+TEST_F(CliTest, CornellBoxEqualsAnInProcessRender) {
+    const std::string out = (dir_ / "cornell.exr").string();
+    ASSERT_EQ(0, Run("render " + kCornell +
+                     " --spp 2 --width 24 --height 20 --seed 11 --tile-size 8 -q -o " + out))
+        << err_;
+    const Image from_cli = ReadImage(out);
+
+    RenderOverrides overrides;
+    overrides.spp = 2;
+    overrides.width = 24;
+    overrides.height = 20;
+    overrides.seed = 11;
+    overrides.tile_size = 8;
+    LoadedScene loaded = LoadSceneFile(kCornell, overrides);
+    const Image in_process = RenderFrameLocal(*loaded.scene, loaded.settings, 1);
+    ExpectSameImage(from_cli, in_process);
+    // Not vacuous: the box is lit, and its walls are coloured.
+    double red = 0, green = 0;
+    for (float v : Channel(from_cli, "R")) red += v;
+    for (float v : Channel(from_cli, "G")) green += v;
+    EXPECT_GT(red, 0);
+    EXPECT_NE(red, green);
+}
+
+// An inline "triangles" shape renders exactly as the same mesh from an OBJ file, as a
+// lit surface and as an area light.
+TEST_F(CliTest, InlineTrianglesRenderAsTheSameObjMesh) {
+    std::ofstream(dir_ / "panel.obj") << "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+                                         "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                         "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    const std::string inline_panel =
+        R"({"type": "triangles", "positions": [-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0],
+            "indices": [0, 1, 2, 0, 2, 3], "uvs": [0, 0, 1, 0, 1, 1, 0, 1])";
+    const std::string obj_panel = R"({"type": "mesh", "file": "panel.obj")";
+    auto scene = [](const std::string& panel) {
+        return R"({
+  "render": {"width": 16, "height": 12, "spp": 2},
+  "camera": {"eye": [0, 1, 4], "target": [0, 0, 0]},
+  "textures": {"checks": {"type": "checkerboard", "a": 0.2, "b": 0.8, "scale": 4}},
+  "materials": {"checks": {"type": "diffuse", "reflectance": "checks"}},
+  "shapes": [)" +
+               panel +
+               R"(, "material": "checks", "transform": {"rotate": {"axis": [1, 0, 0], "angle": -80}}},
+             )" +
+               panel +
+               R"(, "emission": {"radiance": 2}, "transform": [{"scale": 0.3}, {"rotate": {"axis": [1, 0, 0], "angle": 90}}, {"translate": [0, 2, 0]}]}]
+})";
+    };
+    const std::string a = WriteScene("inline.json", scene(inline_panel));
+    const std::string b = WriteScene("obj.json", scene(obj_panel));
+    ASSERT_EQ(0, Run("render " + a + " -q --seed 2 -o " + (dir_ / "inline.exr").string())) << err_;
+    ASSERT_EQ(0, Run("render " + b + " -q --seed 2 -o " + (dir_ / "obj.exr").string())) << err_;
+    const Image ia = ReadImage((dir_ / "inline.exr").string());
+    const Image ib = ReadImage((dir_ / "obj.exr").string());
+    ExpectSameImage(ia, ib);
+    double sum = 0;
+    for (float v : Channel(ia, "R")) sum += v;
+    EXPECT_GT(sum, 0) << "the panel is lit";
 }
 
 }  // namespace

@@ -279,7 +279,9 @@ TEST_F(CoordinatorTest, SubmitRejectsBadSpecsWithTheRightCode) {
         },
         "cannot be placed");
     invalid([](v1::JobSpec& s) { s.set_frame_start(5), s.set_frame_end(4); }, "before");
-    invalid([](v1::JobSpec& s) { s.mutable_options()->set_sampler("sobol"); }, "sobol");
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_sampler("halton"); }, "halton");
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_filter("lanczos"); }, "lanczos");
+    invalid([](v1::JobSpec& s) { s.mutable_options()->set_filter_sampling("both"); }, "both");
     invalid([](v1::JobSpec& s) { s.mutable_options()->set_integrator("magic"); }, "magic");
     invalid([](v1::JobSpec& s) { s.set_frame_end(10); }, "11 frames",
             ErrorCode::kResourceExhausted);

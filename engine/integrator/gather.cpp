@@ -85,7 +85,9 @@ GatherIntegrator::GatherIntegrator(const Scene& scene, const RenderSettings& set
       use_cache_(UsesIrradianceCache(settings)),
       cache_settings_(CacheSettings(settings, scene.Bounds())),
       photon_radius_(PhotonRadius(settings, scene.Bounds())),
-      path_(scene, IntegratorSettings{std::max(0, settings.max_depth - 1), settings.rr_depth},
+      path_(scene,
+            IntegratorSettings{std::max(0, settings.max_depth - 1), settings.rr_depth,
+                               settings.rr_threshold},
             false) {
     if (photon_mode_ && !inputs_.photons)
         throw std::invalid_argument("the photon integrator needs the frame's photon maps");

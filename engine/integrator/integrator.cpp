@@ -21,7 +21,7 @@ bool UsesPhotonMaps(const RenderSettings& s) { return s.integrator == "photon"; 
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs) {
     const std::string& name = settings.integrator;
-    IntegratorSettings is{settings.max_depth, settings.rr_depth};
+    IntegratorSettings is{settings.max_depth, settings.rr_depth, settings.rr_threshold};
     if (name == "path") return std::make_unique<PathIntegrator>(scene, is, false);
     if (name == "direct") return std::make_unique<PathIntegrator>(scene, is, true);
     if (name == "photon") {

@@ -18,6 +18,10 @@ namespace tessera {
 struct IntegratorSettings {
     int max_depth = 64;  // bounces; 0 renders only emitters seen directly
     int rr_depth = 3;    // Russian roulette from this bounce on
+    // Roulette acts only on paths whose throughput (largest channel) fell below this
+    // value, and survivors continue with throughput raised back to it (survival
+    // probability throughput / threshold). 1 is the classic q = 1 - throughput.
+    float rr_threshold = 1;
 };
 
 // What one task keeps while it runs (an irradiance-caching integrator's records made by

@@ -57,11 +57,14 @@ SampleValue PathIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, Scrat
 
         // Every bounce draws the same dimensions, used or not, so that a dimension
         // means the same thing in every sample of a pixel (what stratification needs).
-        float u_light_pick = sampler.Get1D();
+        // The light choice and the roulette share one 2D draw: a sampler's 2D points are
+        // stratified in each coordinate too, and one call fewer per bounce is measurably
+        // cheaper.
+        const Vec2 u_pick_rr = sampler.Get2D();
+        const float u_light_pick = u_pick_rr.x, u_rr = u_pick_rr.y;
         Vec2 u_light = sampler.Get2D();
         float u_lobe = sampler.Get1D();
         Vec2 u_bsdf = sampler.Get2D();
-        float u_rr = sampler.Get1D();
 
         // Next-event estimation.
         bool non_specular = !bsdf->IsSpecular();
@@ -85,9 +88,10 @@ SampleValue PathIntegrator::Trace(const Ray& camera_ray, Sampler& sampler, Scrat
             continue;
         }
 
-        Rgb rr_beta = beta * eta_scale;
-        if (depth >= settings_.rr_depth && rr_beta.MaxComponent() < 1) {
-            float q = std::max(0.0f, 1 - rr_beta.MaxComponent());
+        // Russian roulette (integrator.h): survival probability throughput / threshold.
+        const float rr_max = (beta * eta_scale).MaxComponent();
+        if (depth >= settings_.rr_depth && rr_max < settings_.rr_threshold) {
+            const float q = 1 - rr_max / settings_.rr_threshold;
             if (u_rr < q) break;
             beta /= 1 - q;
         }

@@ -63,6 +63,8 @@ FrameRenderer::FrameRenderer(const Scene& scene, const RenderSettings& settings)
     resolution_ = scene.GetCamera().Resolution();
     plan_ = MakeRenderPlan(resolution_, settings);
     filter_ = MakeFilter(settings.filter);
+    if (settings.filter.sampling == FilterSampling::kImportance)
+        filter_sampler_ = std::make_unique<FilterSampler>(*filter_);
     // The frame number is part of every stream's key: frames of an animation are
     // independent, and a frame is the same whoever renders it.
     sampler_ = MakeSampler(settings.sampler, settings.spp, Hash(settings.seed, settings.frame));
@@ -186,7 +188,7 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     std::unique_ptr<Integrator> integrator =
         MakeIntegrator(settings_, scene_, Inputs(render_stage, artifacts));
     std::unique_ptr<IntegratorTaskState> state = integrator->NewTaskState();
-    TileFilm film(tile, resolution_, *filter_);
+    TileFilm film(tile, resolution_, *filter_, settings_.filter.sampling);
     std::unique_ptr<Sampler> sampler = sampler_->Clone();
     const Camera& camera = scene_.GetCamera();
     for (int y = tile.lo.y; y < tile.hi.y; ++y) {
@@ -194,8 +196,16 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
             for (int i = 0; i < settings_.spp; ++i) {
                 sampler->StartPixelSample(Vec2i(x, y), i);
                 CameraSample cs;
-                Vec2 offset = sampler->GetPixel2D();
-                cs.p_film = Vec2(x + offset.x, y + offset.y);
+                const Vec2 u = sampler->GetPixel2D();
+                // Splatting: uniform in the pixel. Importance: the filter's own
+                // distribution around the pixel's centre, from the same (stratified) u.
+                FilterSample fs;
+                if (filter_sampler_) {
+                    fs = filter_sampler_->Sample(u);
+                    cs.p_film = Vec2(x + 0.5f + fs.offset.x, y + 0.5f + fs.offset.y);
+                } else {
+                    cs.p_film = Vec2(x + u.x, y + u.y);
+                }
                 cs.p_lens = sampler->Get2D();
                 cs.time = sampler->Get1D();
                 Ray ray = camera.GenerateRay(cs);
@@ -204,7 +214,10 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
                 // A NaN or infinity would poison the whole pixel (and its neighbours
                 // through the filter); drop the sample's radiance instead.
                 if (v.L.HasNaN() || std::isinf(v.L.r + v.L.g + v.L.b)) v.L = Rgb();
-                film.AddSample(cs.p_film, v);
+                if (filter_sampler_)
+                    film.AddPixelSample(Vec2i(x, y), fs.weight, v);
+                else
+                    film.AddSample(cs.p_film, v);
             }
         }
     }

@@ -12,6 +12,7 @@
 
 #include "core/arena.h"
 #include "film/film.h"
+#include "film/filter.h"
 #include "integrator/frame_inputs.h"
 #include "integrator/integrator.h"
 #include "plan/render_plan.h"
@@ -65,7 +66,8 @@ class FrameRenderer {
     Vec2i resolution_;
     RenderPlan plan_;
     std::unique_ptr<Filter> filter_;
-    std::unique_ptr<Sampler> sampler_;  // prototype; each task renders with a clone
+    std::unique_ptr<FilterSampler> filter_sampler_;  // with filter importance sampling only
+    std::unique_ptr<Sampler> sampler_;               // prototype; each task renders with a clone
     mutable std::atomic<uint64_t> rays_{0};
 };
 

@@ -33,9 +33,9 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     plan.frame = settings.frame;
     plan.resolution = resolution;
     plan.tiles = MakeTiles(resolution, settings.tile_size);
-    const float filter_radius = FilterRadius(settings.filter);
+    const float film_radius = FilmRadius(settings.filter);
     for (const PixelBounds& tile : plan.tiles)
-        plan.tile_regions.push_back(TileRegion(tile, resolution, filter_radius));
+        plan.tile_regions.push_back(TileRegion(tile, resolution, film_radius));
     const int tiles = static_cast<int>(plan.tiles.size());
     std::vector<int> render_reads;
     if (UsesPhotonMaps(settings)) {
@@ -184,7 +184,7 @@ ImageMetadata FrameMetadata(const RenderSettings& s, double render_seconds) {
     ImageMetadata meta = {
         {"tessera:spp", std::to_string(s.spp)},
         {"tessera:integrator", s.integrator},
-        {"tessera:sampler", s.sampler == SamplerType::kStratified ? "stratified" : "independent"},
+        {"tessera:sampler", SamplerTypeName(s.sampler)},
         {"tessera:seed", std::to_string(s.seed)},
         {"tessera:frame", std::to_string(s.frame)},
         {"tessera:max_depth", std::to_string(s.max_depth)},

@@ -68,8 +68,9 @@ inline std::optional<DebugView> ParseDebugView(const std::string& name) {
 struct RenderSettings {
     std::string integrator = "path";  // path | direct | photon | irradiance-cache
     int spp = 16;
-    int max_depth = 64;  // longest path, counted in bounces
-    int rr_depth = 3;    // Russian roulette starts after this many bounces
+    int max_depth = 64;      // longest path, counted in bounces
+    int rr_depth = 3;        // Russian roulette starts after this many bounces
+    float rr_threshold = 1;  // roulette only below this throughput (integrator.h)
     SamplerType sampler = SamplerType::kStratified;
     uint64_t seed = 0;
     int tile_size = 32;
@@ -87,6 +88,8 @@ struct RenderOverrides {
     std::optional<int> spp, max_depth, tile_size, frame, width, height;
     std::optional<uint64_t> seed;
     std::optional<SamplerType> sampler;
+    std::optional<FilterType> filter;  // a new type starts from that type's defaults
+    std::optional<FilterSampling> filter_sampling;
     std::optional<bool> irradiance_cache;
     std::optional<int> photons_global, photons_caustic, photon_batches;
     std::optional<float> ic_accuracy;

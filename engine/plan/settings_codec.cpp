@@ -35,7 +35,8 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("spp", s.spp);
     put("max_depth", s.max_depth);
     put("rr_depth", s.rr_depth);
-    put("sampler", s.sampler == SamplerType::kStratified ? "stratified" : "independent");
+    put("rr_threshold", s.rr_threshold);
+    put("sampler", SamplerTypeName(s.sampler));
     put("seed", s.seed);
     put("tile_size", s.tile_size);
     put("filter.type", static_cast<int>(s.filter.type));
@@ -43,6 +44,7 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("filter.gaussian_sigma", s.filter.gaussian_sigma);
     put("filter.mitchell_b", s.filter.mitchell_b);
     put("filter.mitchell_c", s.filter.mitchell_c);
+    put("filter.sampling", FilterSamplingName(s.filter.sampling));
     put("frame", s.frame);
     put("width", s.resolution.x);
     put("height", s.resolution.y);
@@ -82,10 +84,11 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
     set["spp"] = i(s.spp);
     set["max_depth"] = i(s.max_depth);
     set["rr_depth"] = i(s.rr_depth);
+    set["rr_threshold"] = f(s.rr_threshold);
     set["sampler"] = [&](const std::string& k, const std::string& v) {
-        if (v != "stratified" && v != "independent")
-            throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
-        s.sampler = v == "stratified" ? SamplerType::kStratified : SamplerType::kIndependent;
+        std::optional<SamplerType> type = ParseSamplerType(v);
+        if (!type) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
+        s.sampler = *type;
     };
     set["seed"] = [&](const std::string& k, const std::string& v) {
         s.seed = Parse<uint64_t>(k, v);
@@ -93,13 +96,19 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
     set["tile_size"] = i(s.tile_size);
     set["filter.type"] = [&](const std::string& k, const std::string& v) {
         int t = Parse<int>(k, v);
-        if (t < 0 || t > 2) throw std::invalid_argument("settings: unknown filter type");
+        if (t < 0 || t > static_cast<int>(FilterType::kTent))
+            throw std::invalid_argument("settings: unknown filter type");
         s.filter.type = static_cast<FilterType>(t);
     };
     set["filter.radius"] = f(s.filter.radius);
     set["filter.gaussian_sigma"] = f(s.filter.gaussian_sigma);
     set["filter.mitchell_b"] = f(s.filter.mitchell_b);
     set["filter.mitchell_c"] = f(s.filter.mitchell_c);
+    set["filter.sampling"] = [&](const std::string& k, const std::string& v) {
+        std::optional<FilterSampling> m = ParseFilterSampling(v);
+        if (!m) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
+        s.filter.sampling = *m;
+    };
     set["frame"] = i(s.frame);
     set["width"] = i(s.resolution.x);
     set["height"] = i(s.resolution.y);

@@ -49,6 +49,8 @@ TriangleMesh ShapeMesh(const ShapeRecord& s, const std::map<std::string, Triangl
             return MakeQuad(s.corners[0], s.corners[1], s.corners[2], s.corners[3]);
         case ShapeKind::kMesh:
             return files.at(s.path);
+        case ShapeKind::kTriangles:
+            return s.triangles;
         case ShapeKind::kSphere:
             break;
     }
@@ -156,9 +158,25 @@ TextureRef Reflectance(const ColorParam& p, const std::vector<TextureRef>& textu
     return t;
 }
 
+// A blend's weight as a texture; one that could leave [0, 1] is an error.
+TextureRef BlendWeight(const ColorParam& p, const std::vector<TextureRef>& textures,
+                       const SceneRecords& records) {
+    if (p.texture < 0) return MakeConstantTexture(p.value);
+    const TextureRef& t = textures[p.texture];
+    float max = t->MaxValue();
+    if (max > 1 + kAlbedoSlack) {
+        char value[32];
+        std::snprintf(value, sizeof(value), "%g", max);
+        throw SceneError(p.where, "texture '" + records.textures[p.texture].name + "' reaches " +
+                                      value + ", but a blend weight is in [0, 1]");
+    }
+    return t;
+}
+
 std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
                                        const std::vector<TextureRef>& textures,
-                                       const SceneRecords& records) {
+                                       const SceneRecords& records,
+                                       const std::vector<std::unique_ptr<Material>>& built) {
     switch (m.kind) {
         case MaterialKind::kDiffuse:
             return MakeDiffuseMaterial(Reflectance(m.reflectance, textures, records));
@@ -167,14 +185,34 @@ std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
         case MaterialKind::kDielectric:
             return MakeDielectricMaterial(m.eta);
         case MaterialKind::kRoughConductor:
-            return MakeRoughConductorMaterial(m.conductor_eta, m.conductor_k, m.alpha_u, m.alpha_v);
+            return MakeRoughConductorMaterial(
+                m.conductor_eta, m.conductor_k, m.alpha_u, m.alpha_v, m.distribution,
+                Reflectance(m.specular_reflectance, textures, records));
+        case MaterialKind::kConductor:
+            return MakeRoughConductorMaterial(
+                m.conductor_eta, m.conductor_k, 0, 0, MicrofacetType::kGgx,
+                Reflectance(m.specular_reflectance, textures, records));
         case MaterialKind::kRoughDielectric:
-            return MakeRoughDielectricMaterial(m.eta, m.alpha_u);
+            return MakeRoughDielectricMaterial(m.eta, m.alpha_u, m.distribution);
         case MaterialKind::kPlastic:
             return MakePlasticMaterial(Reflectance(m.reflectance, textures, records), m.eta,
-                                       m.alpha_u);
+                                       m.alpha_u, m.distribution);
+        case MaterialKind::kBlend:
+            return MakeBlendMaterial(built[m.parts[0]].get(), built[m.parts[1]].get(),
+                                     BlendWeight(m.weight, textures, records));
     }
     throw std::logic_error("unknown material kind");
+}
+
+// Builds material `i` into `built`, a blend's parts first (the parser ruled out cycles).
+// A blend keeps pointers to its parts, which stay valid when `built` moves into the Scene.
+void BuildMaterial(int i, const std::vector<TextureRef>& textures, const SceneRecords& records,
+                   std::vector<std::unique_ptr<Material>>* built) {
+    if ((*built)[i]) return;
+    const MaterialRecord& m = records.materials[i];
+    if (m.kind == MaterialKind::kBlend)
+        for (int part : m.parts) BuildMaterial(part, textures, records, built);
+    (*built)[i] = MakeMaterial(m, textures, records, *built);
 }
 
 std::unique_ptr<Light> MakeLight(const LightRecord& l) {
@@ -230,6 +268,14 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     ranged(o.height, 1, 65536, "height", &s.resolution.y);
     if (o.seed) s.seed = *o.seed;
     if (o.sampler) s.sampler = *o.sampler;
+    if (o.filter && *o.filter != s.filter.type) {
+        // The scene's radius and shape parameters were chosen for its own filter type.
+        FilterSettings f;
+        f.type = *o.filter;
+        f.sampling = s.filter.sampling;
+        s.filter = f;
+    }
+    if (o.filter_sampling) s.filter.sampling = *o.filter_sampling;
     if (o.irradiance_cache) s.irradiance.enabled = *o.irradiance_cache;
     ranged(o.photons_global, 0, 1 << 30, "photons", &s.photon.global_photons);
     ranged(o.photons_caustic, 0, 1 << 30, "caustic photons", &s.photon.caustic_photons);
@@ -258,9 +304,9 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
     files.clear();
 
     std::vector<TextureRef> textures = MakeTextures(records);
-    std::vector<std::unique_ptr<Material>> materials;
-    for (const MaterialRecord& m : records.materials)
-        materials.push_back(MakeMaterial(m, textures, records));
+    std::vector<std::unique_ptr<Material>> materials(records.materials.size());
+    for (size_t i = 0; i < records.materials.size(); ++i)
+        BuildMaterial(int(i), textures, records, &materials);
 
     LoadedScene out;
     out.settings = settings;

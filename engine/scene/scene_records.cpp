@@ -205,11 +205,14 @@ struct Context {
 FilterSettings ParseFilter(const JsonValue& v) {
     JsonObject o = v.AsObject();
     FilterSettings f;
-    static const std::vector<std::string> kTypes = {"box", "gaussian", "mitchell"};
+    static const std::vector<std::string> kTypes = {"box", "gaussian", "mitchell", "tent"};
     int type = ParseEnum(o.Required("type"), kTypes, "filter type");
-    f.type =
-        type == 0 ? FilterType::kBox : (type == 1 ? FilterType::kGaussian : FilterType::kMitchell);
+    f.type = *ParseFilterType(kTypes[type]);
     if (auto r = o.Get("radius")) f.radius = Positive(*r);
+    if (auto m = o.Get("sampling"))
+        f.sampling = ParseEnum(*m, {"splat", "importance"}, "filter sampling") == 0
+                         ? FilterSampling::kSplat
+                         : FilterSampling::kImportance;
     if (f.type == FilterType::kGaussian) {
         if (auto s = o.Get("sigma")) f.gaussian_sigma = Positive(*s);
     }
@@ -260,9 +263,10 @@ RenderSettings ParseRender(const JsonValue& v) {
         r.integrator = KnownIntegrators()[ParseEnum(*i, KnownIntegrators(), "integrator")];
     if (auto d = o.Get("max_depth")) r.max_depth = int(d->AsInt(0, 100000));
     if (auto d = o.Get("rr_depth")) r.rr_depth = int(d->AsInt(0, 100000));
+    if (auto t = o.Get("rr_threshold")) r.rr_threshold = Positive(*t);
     if (auto s = o.Get("sampler")) {
-        int t = ParseEnum(*s, {"stratified", "independent"}, "sampler");
-        r.sampler = t == 0 ? SamplerType::kStratified : SamplerType::kIndependent;
+        const std::vector<std::string>& names = SamplerTypeNames();
+        r.sampler = *ParseSamplerType(names[ParseEnum(*s, names, "sampler")]);
     }
     if (auto s = o.Get("seed")) r.seed = s->AsUint64();
     if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
@@ -482,8 +486,10 @@ void ParseAlpha(JsonObject& o, MaterialRecord* m, float default_alpha, bool allo
     }
 }
 
-const std::vector<std::string> kMaterialTypes = {"diffuse",        "mirror",          "dielectric",
-                                                 "roughconductor", "roughdielectric", "plastic"};
+// In MaterialKind's order.
+const std::vector<std::string> kMaterialTypes = {
+    "diffuse",         "mirror",  "dielectric", "roughconductor",
+    "roughdielectric", "plastic", "conductor",  "blend"};
 
 float ParseEta(JsonObject& o) {
     auto e = o.Get("eta");
@@ -493,7 +499,31 @@ float ParseEta(JsonObject& o) {
     return eta;
 }
 
-MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const Context& ctx) {
+// Materials given inline in blends: appended after the `first` named ones.
+struct InlineMaterials {
+    int first = 0;
+    std::vector<MaterialRecord> records;
+};
+
+void ParseDistribution(JsonObject& o, MaterialRecord* m) {
+    if (auto d = o.Get("distribution"))
+        m->distribution = MicrofacetType(ParseEnum(*d, {"ggx", "beckmann"}, "distribution"));
+}
+
+MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const Context& ctx,
+                             InlineMaterials* inline_materials);
+
+// A blend's part: a material name or an inline material record.
+int ParseBlendPart(const JsonValue& v, const Context& ctx, InlineMaterials* inline_materials) {
+    if (v.IsString()) return ParseReference(v, ctx.materials, "material");
+    if (!v.IsObject()) v.Fail("expected a material name or a material record, got " + v.KindName());
+    MaterialRecord part = ParseMaterial("", v, ctx, inline_materials);
+    inline_materials->records.push_back(std::move(part));
+    return inline_materials->first + int(inline_materials->records.size()) - 1;
+}
+
+MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const Context& ctx,
+                             InlineMaterials* inline_materials) {
     JsonObject o = v.AsObject();
     MaterialRecord m;
     m.name = name;
@@ -507,6 +537,28 @@ MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const 
         p.value = Rgb(def);
         return p;
     };
+    auto conductor = [&] {
+        auto metal = o.Get("metal"), eta = o.Get("eta"), k = o.Get("k");
+        if (metal && (eta || k)) (eta ? *eta : *k).Fail("give either metal or eta and k");
+        if (metal) {
+            std::vector<std::string> names;
+            for (const Metal& mt : kMetals) names.push_back(mt.name);
+            const Metal& mt = kMetals[ParseEnum(*metal, names, "metal")];
+            m.conductor_eta = mt.eta;
+            m.conductor_k = mt.k;
+        } else if (eta && k) {
+            m.conductor_eta = NonNegativeRgb(*eta);
+            m.conductor_k = NonNegativeRgb(*k);
+        } else {
+            o.Fail("a " + kMaterialTypes[type] + " needs 'metal', or both 'eta' and 'k'");
+        }
+        if (auto r = o.Get("specular_reflectance")) {
+            m.specular_reflectance = ParseReflectance(*r, ctx, true);
+        } else {
+            m.specular_reflectance.where = v.Where();
+            m.specular_reflectance.value = Rgb(1);
+        }
+    };
     switch (m.kind) {
         case MaterialKind::kDiffuse:
             m.reflectance = reflectance(0.5f);
@@ -517,42 +569,79 @@ MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const 
         case MaterialKind::kDielectric:
             m.eta = ParseEta(o);
             break;
-        case MaterialKind::kRoughConductor: {
-            auto metal = o.Get("metal"), eta = o.Get("eta"), k = o.Get("k");
-            if (metal && (eta || k)) (eta ? *eta : *k).Fail("give either metal or eta and k");
-            if (metal) {
-                std::vector<std::string> names;
-                for (const Metal& mt : kMetals) names.push_back(mt.name);
-                const Metal& mt = kMetals[ParseEnum(*metal, names, "metal")];
-                m.conductor_eta = mt.eta;
-                m.conductor_k = mt.k;
-            } else if (eta && k) {
-                m.conductor_eta = NonNegativeRgb(*eta);
-                m.conductor_k = NonNegativeRgb(*k);
-            } else {
-                o.Fail("a roughconductor needs 'metal', or both 'eta' and 'k'");
-            }
+        case MaterialKind::kRoughConductor:
+            conductor();
             ParseAlpha(o, &m, 0.1f, false, true);
+            ParseDistribution(o, &m);
             break;
-        }
+        case MaterialKind::kConductor:
+            conductor();
+            break;
         case MaterialKind::kRoughDielectric:
             m.eta = ParseEta(o);
             ParseAlpha(o, &m, 0.1f, false, false);
+            ParseDistribution(o, &m);
             break;
         case MaterialKind::kPlastic:
             m.reflectance = reflectance(0.5f);
             m.eta = ParseEta(o);
             ParseAlpha(o, &m, 0.0f, true, false);
+            ParseDistribution(o, &m);
             break;
+        case MaterialKind::kBlend: {
+            JsonValue parts = o.Required("materials");
+            if (!parts.IsArray() || parts.Size() != 2)
+                parts.Fail("expected a list of two materials (names or records)");
+            std::vector<JsonValue> elements = parts.Elements();
+            for (int i = 0; i < 2; ++i)
+                m.parts[i] = ParseBlendPart(elements[i], ctx, inline_materials);
+            JsonValue w = o.Required("weight");
+            m.weight.where = w.Where();
+            if (w.IsString()) {
+                m.weight.texture = ParseReference(w, ctx.textures, "texture");
+            } else {
+                if (!w.IsNumber())
+                    w.Fail("expected a number in [0, 1] or a texture name, got " + w.KindName());
+                m.weight.value = Rgb(InRange(w, 0, 1, false, false));
+            }
+            break;
+        }
     }
     o.Finish("a " + kMaterialTypes[type] + " material");
     return m;
 }
 
+enum class VisitState { kUnvisited, kOpen, kDone };
+
+void VisitBlendParts(const std::vector<MaterialRecord>& materials, int i,
+                     std::vector<VisitState>* state) {
+    (*state)[i] = VisitState::kOpen;
+    const MaterialRecord& m = materials[i];
+    if (m.kind == MaterialKind::kBlend) {
+        for (int part : m.parts) {
+            if ((*state)[part] == VisitState::kOpen) {
+                std::string what = m.name.empty() ? "this blend" : "blend '" + m.name + "'";
+                throw SceneError(m.where, what + " contains itself through its materials");
+            }
+            if ((*state)[part] == VisitState::kUnvisited) VisitBlendParts(materials, part, state);
+        }
+    }
+    (*state)[i] = VisitState::kDone;
+}
+
+// A blend that contains itself, through any chain of parts, has no meaning: fails at
+// the first such blend found.
+void CheckBlendCycles(const std::vector<MaterialRecord>& materials) {
+    std::vector<VisitState> state(materials.size(), VisitState::kUnvisited);
+    for (size_t i = 0; i < materials.size(); ++i)
+        if (state[i] == VisitState::kUnvisited) VisitBlendParts(materials, int(i), &state);
+}
+
 // ---------------------------------------------------------------------------------------
 // shapes, objects, instances
 
-const std::vector<std::string> kShapeTypes = {"sphere", "rectangle", "disk", "box", "quad", "mesh"};
+const std::vector<std::string> kShapeTypes = {"sphere", "rectangle", "disk",     "box",
+                                              "quad",   "mesh",      "triangles"};
 
 std::optional<EmissionRecord> ParseEmission(const JsonValue& v) {
     JsonObject o = v.AsObject();
@@ -562,6 +651,123 @@ std::optional<EmissionRecord> ParseEmission(const JsonValue& v) {
     o.Finish("emission");
     if (e.radiance.IsBlack()) return std::nullopt;  // glows with nothing: not a light
     return e;
+}
+
+// Inline triangle meshes ("triangles"). Their vertices are numbered by 32-bit indices, as
+// those of mesh files; like a mesh file, the data counts towards the size limit of the
+// file that holds it (the scene file).
+constexpr uint64_t kMaxInlineVertices = uint64_t(UINT32_MAX);
+
+// A list of tuples of `arity` numbers, one per vertex or triangle, written either nested
+// ([[x, y, z], ...]) or flat ([x, y, z, ...]); its first element tells which.
+class TupleList {
+  public:
+    TupleList(const JsonValue& v, size_t arity, const std::string& what)
+        : value_(v), arity_(arity), elements_(v.Elements()) {
+        flat_ = !elements_.empty() && elements_[0].IsNumber();
+        if (flat_ && elements_.size() % arity_ != 0)
+            v.Fail("a flat list of " + what + "s needs " + std::to_string(arity_) +
+                   " numbers per " + what + ", got " + std::to_string(elements_.size()) +
+                   " numbers");
+        if (Size() > kMaxInlineVertices)
+            v.Fail("too many " + what + "s (" + std::to_string(Size()) + "; at most " +
+                   std::to_string(kMaxInlineVertices) + ")");
+        for (size_t i = 0; !flat_ && i < elements_.size(); ++i) {
+            const JsonValue& e = elements_[i];
+            if (!e.IsArray() || e.Size() != arity_)
+                e.Fail("expected a " + what + " of " + std::to_string(arity_) + " numbers, got " +
+                       (e.IsArray() ? "an array of " + std::to_string(e.Size()) : e.KindName()));
+        }
+    }
+    const JsonValue& Value() const { return value_; }
+    size_t Size() const { return flat_ ? elements_.size() / arity_ : elements_.size(); }
+    // Where tuple i is written: its own array, or (flat) its first number.
+    const JsonValue& Where(size_t i) const { return elements_[flat_ ? i * arity_ : i]; }
+    // The numbers of tuple i, each still able to name its place.
+    std::vector<JsonValue> Numbers(size_t i) const {
+        if (!flat_) return elements_[i].Elements();
+        return {elements_.begin() + std::ptrdiff_t(i * arity_),
+                elements_.begin() + std::ptrdiff_t((i + 1) * arity_)};
+    }
+    std::vector<float> Floats(size_t i) const {
+        std::vector<float> out;
+        for (const JsonValue& n : Numbers(i)) out.push_back(n.AsFloat());
+        return out;
+    }
+
+  private:
+    JsonValue value_;
+    size_t arity_;
+    std::vector<JsonValue> elements_;
+    bool flat_ = false;
+};
+
+// A per-vertex attribute list: as many tuples as there are positions.
+TupleList VertexAttribute(const JsonValue& v, size_t arity, const std::string& what,
+                          size_t num_positions) {
+    TupleList list(v, arity, what);
+    if (list.Size() != num_positions)
+        v.Fail(std::to_string(list.Size()) + " " + what + "s for " + std::to_string(num_positions) +
+               " positions: give one per vertex, or none");
+    return list;
+}
+
+// The mesh of a "triangles" shape, checked value by value so that each mistake is named
+// at its place in the file.
+TriangleMesh ParseInlineMesh(JsonObject& o) {
+    TriangleMesh m;
+    TupleList positions(o.Required("positions"), 3, "position");
+    if (positions.Size() == 0) positions.Value().Fail("an inline mesh needs vertices");
+    for (size_t i = 0; i < positions.Size(); ++i) {
+        std::vector<float> p = positions.Floats(i);
+        m.positions.push_back({p[0], p[1], p[2]});
+    }
+    const size_t num_vertices = m.positions.size();
+
+    TupleList indices(o.Required("indices"), 3, "triangle");
+    if (indices.Size() == 0) indices.Value().Fail("an inline mesh needs at least one triangle");
+    for (size_t t = 0; t < indices.Size(); ++t) {
+        uint32_t corner[3];
+        std::vector<JsonValue> numbers = indices.Numbers(t);
+        for (int k = 0; k < 3; ++k) {
+            const JsonValue& n = numbers[size_t(k)];
+            double d = n.AsDouble();
+            if (d != std::floor(d)) n.Fail("a vertex index must be an integer, got " + Number(d));
+            if (d < 0 || d >= double(num_vertices))
+                n.Fail("vertex index " + Number(d) + " is out of range: the mesh has " +
+                       std::to_string(num_vertices) + " vertices (0 to " +
+                       std::to_string(num_vertices - 1) + ")");
+            corner[k] = uint32_t(d);
+        }
+        const JsonValue& where = indices.Where(t);
+        if (corner[0] == corner[1] || corner[1] == corner[2] || corner[0] == corner[2])
+            where.Fail("triangle " + std::to_string(t) +
+                       " is degenerate: it uses one vertex twice");
+        const Vec3 &a = m.positions[corner[0]], &b = m.positions[corner[1]],
+                   &c = m.positions[corner[2]];
+        if (LengthSquared(Cross(b - a, c - a)) == 0)
+            where.Fail("triangle " + std::to_string(t) +
+                       " is degenerate: its corners are collinear (zero area)");
+        m.indices.insert(m.indices.end(), {corner[0], corner[1], corner[2]});
+    }
+
+    if (auto nv = o.Get("normals")) {
+        TupleList normals = VertexAttribute(*nv, 3, "normal", num_vertices);
+        for (size_t i = 0; i < normals.Size(); ++i) {
+            std::vector<float> n = normals.Floats(i);
+            Vec3 normal(n[0], n[1], n[2]);
+            if (LengthSquared(normal) == 0) normals.Where(i).Fail("a normal must not be zero");
+            m.normals.push_back(normal);
+        }
+    }
+    if (auto uv = o.Get("uvs")) {
+        TupleList uvs = VertexAttribute(*uv, 2, "uv", num_vertices);
+        for (size_t i = 0; i < uvs.Size(); ++i) {
+            std::vector<float> t = uvs.Floats(i);
+            m.uvs.push_back({t[0], t[1]});
+        }
+    }
+    return m;
 }
 
 // `in_object`: a shape of an instanced object, which can neither emit nor be a sphere
@@ -624,6 +830,9 @@ ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
                 file.Fail("unsupported mesh format '" + ext + "' (expected .obj or .ply)");
             break;
         }
+        case ShapeKind::kTriangles:
+            s.triangles = ParseInlineMesh(o);
+            break;
     }
     if (s.kind != ShapeKind::kSphere) {
         if (auto t = o.Get("transform")) s.transform = ParseTransform(*t);
@@ -636,7 +845,7 @@ ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
     // An emitter may have no material: it then only glows and reflects nothing.
     std::optional<JsonValue> material = emission ? o.Get("material") : o.Required("material");
     if (material) s.material = ParseReference(*material, ctx.materials, "material");
-    o.Finish("a " + kShapeTypes[type]);
+    o.Finish(s.kind == ShapeKind::kTriangles ? "a triangles shape" : "a " + kShapeTypes[type]);
     return s;
 }
 
@@ -741,10 +950,16 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
         }
     }
     if (materials) {
-        for (auto& [name, value] : materials->AsObject().Entries()) {
-            ctx.materials[name] = int(rec.materials.size());
-            rec.materials.push_back(ParseMaterial(name, value, ctx));
-        }
+        // Every name first, so that a blend may refer to a material defined after it.
+        auto entries = materials->AsObject().Entries();
+        int next = 0;
+        for (auto& [name, value] : entries) ctx.materials[name] = next++;
+        InlineMaterials inline_materials;
+        inline_materials.first = int(entries.size());
+        for (auto& [name, value] : entries)
+            rec.materials.push_back(ParseMaterial(name, value, ctx, &inline_materials));
+        for (MaterialRecord& m : inline_materials.records) rec.materials.push_back(std::move(m));
+        CheckBlendCycles(rec.materials);
     }
     ctx.section = "shapes";
     if (shapes) rec.shapes = ParseShapeList(*shapes, ctx, false);
@@ -813,10 +1028,26 @@ Context LocalContext(const std::string& path, uint64_t max_file_bytes) {
 
 }  // namespace
 
+namespace {
+
+// A scene file outside any sandbox, read under the same size limit as the files it names
+// (its inline meshes count towards it).
+JsonDocument LoadLocalSceneFile(const std::string& path, uint64_t max_file_bytes) {
+    std::string text;
+    try {
+        text = ReadFileBytes(path, max_file_bytes, path);
+    } catch (const std::runtime_error& e) {
+        throw SceneError(path, std::string("scene file ") + e.what());
+    }
+    return JsonDocument::Parse(text, path);
+}
+
+}  // namespace
+
 SceneRecords ParseSceneFile(const std::string& path, const SceneLoadOptions& options) {
     SceneRecords rec = options.sandboxed
                            ? ParseSandboxedSceneFile(path, options)
-                           : ParseDocument(JsonDocument::Load(path), path,
+                           : ParseDocument(LoadLocalSceneFile(path, options.max_file_bytes), path,
                                            LocalContext(path, options.max_file_bytes));
     rec.max_file_bytes = options.max_file_bytes;
     rec.image_limits = options.image_limits;

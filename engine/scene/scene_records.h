@@ -14,7 +14,9 @@
 #include "core/color.h"
 #include "core/math.h"
 #include "core/transform.h"
+#include "material/microfacet.h"
 #include "plan/render_settings.h"
+#include "scene/mesh.h"
 #include "scene/scene_loader.h"
 
 namespace tessera {
@@ -45,16 +47,26 @@ enum class MaterialKind {
     kDielectric,
     kRoughConductor,
     kRoughDielectric,
-    kPlastic
+    kPlastic,
+    kConductor,
+    kBlend
 };
 
+// A material, named (from the "materials" section) or inline in a blend (name empty).
 struct MaterialRecord {
     std::string name, where;
     MaterialKind kind = MaterialKind::kDiffuse;
     ColorParam reflectance;          // diffuse, mirror, plastic (the diffuse base)
     float eta = 1.5f;                // dielectric, roughdielectric, plastic
-    Rgb conductor_eta, conductor_k;  // roughconductor
-    float alpha_u = 0, alpha_v = 0;  // GGX roughness (roughdielectric and plastic: alpha_u)
+    Rgb conductor_eta, conductor_k;  // conductor, roughconductor
+    float alpha_u = 0, alpha_v = 0;  // roughness (roughdielectric and plastic: alpha_u)
+    MicrofacetType distribution = MicrofacetType::kGgx;  // the rough materials
+    // conductor, roughconductor: multiplies the Fresnel term (1 unless given).
+    ColorParam specular_reflectance;
+    // blend: f = (1 - w) f_a + w f_b with parts[0] = a, parts[1] = b (indices into
+    // SceneRecords::materials; no cycles) and w the weight (value.r or a texture).
+    std::array<int, 2> parts = {-1, -1};
+    ColorParam weight;
 };
 
 struct EmissionRecord {
@@ -62,7 +74,7 @@ struct EmissionRecord {
     bool two_sided = false;
 };
 
-enum class ShapeKind { kSphere, kRectangle, kDisk, kBox, kQuad, kMesh };
+enum class ShapeKind { kSphere, kRectangle, kDisk, kBox, kQuad, kMesh, kTriangles };
 
 struct ShapeRecord {
     std::string where;
@@ -76,6 +88,7 @@ struct ShapeRecord {
     std::array<Vec3, 4> corners;                         // quad
     std::string path;        // mesh: resolved against the scene file's folder
     std::string path_where;  // mesh: where "file" was given
+    TriangleMesh triangles;  // triangles: the mesh written in the file, in object space
     Transform transform;     // object to world (all but spheres)
     int material = -1;       // index into SceneRecords::materials; -1: none
     std::optional<EmissionRecord> emission;
@@ -126,6 +139,7 @@ struct SceneRecords {
     RenderSettings render;
     CameraRecord camera;
     std::vector<TextureRecord> textures;
+    // The named materials in file order, then those given inline in blends.
     std::vector<MaterialRecord> materials;
     std::vector<ShapeRecord> shapes;
     std::vector<ObjectRecord> objects;
