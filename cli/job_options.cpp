@@ -61,8 +61,9 @@ void RenderFlags::AddTo(CLI::App& cmd) {
                    "Debug image: photons (the photon maps drawn), records (cache record "
                    "positions), indirect (indirect light only)")
         ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
-    cmd.add_option("--sampler", sampler,
-                   "Pixel sampler: stratified, independent or sobol (Owen-scrambled Sobol)")
+    cmd.add_option(
+           "--sampler", sampler,
+           "Pixel sampler: sobol (Owen-scrambled Sobol, the default), stratified or independent")
         ->check(CLI::IsMember(SamplerTypeNames()));
     cmd.add_option("--filter", filter,
                    "Pixel filter: box, gaussian, mitchell or tent, at its default radius "

@@ -21,7 +21,7 @@ struct IntegratorSettings {
     // Roulette acts only on paths whose throughput (largest channel) fell below this
     // value, and survivors continue with throughput raised back to it (survival
     // probability throughput / threshold). 1 is the classic q = 1 - throughput.
-    float rr_threshold = 1;
+    float rr_threshold = 0.25f;
 };
 
 // What one task keeps while it runs (an irradiance-caching integrator's records made by

@@ -69,6 +69,8 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
 
 RenderSettings DecodeRenderSettings(const std::string& text) {
     RenderSettings s;
+    // Settings written before a key existed meant what its absence meant then.
+    s.rr_threshold = 1;
     std::map<std::string, std::function<void(const std::string&, const std::string&)>> set;
     auto i = [](int& field) {
         return [&field](const std::string& k, const std::string& v) { field = Parse<int>(k, v); };
