@@ -13,30 +13,16 @@
 #include "material/materials.h"
 #include "plan/local_runner.h"
 #include "scene/scene.h"
+#include "scene_helpers.h"
 
 namespace tessera {
 namespace {
 
-const Material* Diffuse(Scene& scene, float albedo) {
-    return scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(albedo))));
-}
-
-void SetCamera(Scene& scene, Vec3 eye, Vec3 target, float fov, int size) {
-    PerspectiveSettings cam;
-    cam.camera_to_world = Transform::LookAt(eye, target, Vec3(0, 1, 0));
-    cam.fov_deg = fov;
-    cam.resolution = Vec2i(size, size);
-    scene.SetCamera(MakePerspectiveCamera(cam));
-}
+using test::Diffuse;
+using test::SetCamera;
 
 RenderSettings Settings(const std::string& integrator, int spp, uint64_t seed = 1) {
-    RenderSettings s;
-    s.integrator = integrator;
-    s.spp = spp;
-    s.seed = seed;
-    s.max_depth = 1000;
-    s.tile_size = 8;
-    return s;
+    return test::Settings(integrator, spp, seed);
 }
 
 struct Stats {
