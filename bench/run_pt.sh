@@ -26,17 +26,18 @@ reference() {  # scene output width height spp max-depth
     --max-depth "$6" --threads "$threads"
 }
 
-configs() {  # max-depth; the settings compared, first the old defaults
+configs() {  # max-depth; the settings compared, first the old defaults (filter.type 3: tent)
   local d="spp=$spp max_depth=$1"
   echo "$d sampler=stratified filter.type=0 rr_threshold=1"
   echo "$d sampler=independent filter.type=0 rr_threshold=1"
   echo "$d sampler=sobol filter.type=0 rr_threshold=1"
   echo "$d sampler=sobol filter.type=0 rr_threshold=0.5"
   echo "$d sampler=sobol filter.type=0 rr_threshold=0.25"
-  echo "$d sampler=sobol filter.type=3 filter.sampling=importance rr_threshold=0.5"
-  echo "$d sampler=sobol filter.type=3 filter.sampling=splat rr_threshold=0.5"
-  echo "$d sampler=sobol filter.type=0 rr_threshold=0.5 isa=max_isa=sse4.2"
-  echo "$d sampler=sobol filter.type=0 rr_threshold=0.5 isa="
+  echo "$d sampler=sobol filter.type=0 rr_threshold=0.1"
+  echo "$d sampler=sobol filter.type=3 filter.sampling=splat rr_threshold=0.25"
+  echo "$d sampler=sobol filter.type=3 filter.sampling=importance rr_threshold=0.25"
+  echo "$d sampler=sobol filter.type=0 rr_threshold=0.25 isa=max_isa=sse4.2"
+  echo "$d sampler=sobol filter.type=0 rr_threshold=0.25 isa="
 }
 
 run() {  # scene reference emitter-luminance max-depth
