@@ -97,6 +97,24 @@ TEST_F(ImageIoTest, ExrRoundTripIsBitExactWithChannelsAndMetadata) {
 
 // OpenEXR sizes its tables from the header: the header is checked before OpenImageIO sees
 // it. A 623-byte file (found by fuzzing) once took 1.9 GB and 18 s inside open().
+// A BMP of 3,276,804 x 4 pixels (found by fuzzing): small decoded, but OpenImageIO converts
+// through 256 native scanlines of 9.8 MB each, 2.5 GB, whatever the height.
+TEST_F(ImageIoTest, VeryWideScanlinesAreRefusedBeforeDecoding) {
+    std::ifstream file(
+        std::string(TESSERA_SOURCE_DIR) + "/fuzz/corpus/image/wide-bmp-scanline-buffer",
+        std::ios::binary);
+    ASSERT_TRUE(file);
+    // The fuzzer's first byte picks the format; the rest is the file.
+    const std::string bytes = std::string((std::istreambuf_iterator<char>(file)), {}).substr(1);
+    try {
+        DecodeImage(bytes, "textures/wide.bmp", ImageDecodeLimits());
+        FAIL() << "the wide image was decoded";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("scanlines of 9830412 bytes"), std::string::npos)
+            << e.what();
+    }
+}
+
 TEST_F(ImageIoTest, HostileExrHeadersAreRefusedBeforeDecoding) {
     std::ifstream bomb_file(
         std::string(TESSERA_SOURCE_DIR) + "/fuzz/corpus/image/exr-header-bomb.bin",

@@ -180,6 +180,17 @@ Image ReadPixels(OIIO::ImageInput& in, const std::string& name, const ImageDecod
         Fail("cannot read", name,
              "the image declares " + shape + ", over the limit of " +
                  std::to_string(limits.max_decoded_bytes >> 20) + " MiB decoded");
+    // Converting to float, OpenImageIO reads through a buffer of up to 256 native
+    // scanlines, whatever the image's height: a very wide image (a header's width, for
+    // 4 rows) would have it allocate 256 of them.
+    constexpr uint64_t kBufferedScanlines = 256;
+    if (static_cast<uint64_t>(spec.scanline_bytes(true)) * kBufferedScanlines >
+        limits.max_decoded_bytes)
+        Fail("cannot read", name,
+             "the image declares " + shape + ": its scanlines of " +
+                 std::to_string(spec.scanline_bytes(true)) + " bytes are over the limit of " +
+                 std::to_string(limits.max_decoded_bytes / kBufferedScanlines) +
+                 " bytes a decoder may buffer 256 of");
     Image image;
     image.width = spec.width;
     image.height = spec.height;
