@@ -116,19 +116,18 @@ TEST(SobolConstructionTest, OwenScramblingKeepsPrefixes) {
         int n = static_cast<int>(rng.NextU32() % 32);
         uint32_t y = (x & ((1u << n) - 1)) | ((x ^ (1u << n)) & (1u << n)) |
                      (rng.NextU32() & ~((2u << n) - 1));
-        uint32_t sx = OwenScrambleReversed(x, key), sy = OwenScrambleReversed(y, key);
-        uint32_t prefix = (1u << n) - 1;
-        ASSERT_EQ(sx & prefix, sy & prefix) << n;
-        ASSERT_NE(sx & (1u << n), sy & (1u << n)) << n;
-        uint32_t ux = ScrambleUpwards(x, key);
-        uint32_t uy = ScrambleUpwards(y, key);
-        ASSERT_EQ(ux & prefix, uy & prefix) << n;
-        ASSERT_NE(ux & (1u << n), uy & (1u << n)) << n;
+        for (uint32_t seed : {static_cast<uint32_t>(key), static_cast<uint32_t>(key >> 32),
+                              SobolSecondKey(key)}) {
+            uint32_t sx = OwenScrambleReversed(x, seed), sy = OwenScrambleReversed(y, seed);
+            uint32_t prefix = (1u << n) - 1;
+            ASSERT_EQ(sx & prefix, sy & prefix) << n;
+            ASSERT_NE(sx & (1u << n), sy & (1u << n)) << n;
+        }
     }
     // Exhaustively a bijection on the first 2^16 values' low 16 bits.
     std::vector<bool> seen(1 << 16, false);
     for (uint32_t x = 0; x < (1u << 16); ++x) {
-        uint32_t s = OwenScrambleReversed(x, 0x0123456789abcdefull) & 0xffffu;
+        uint32_t s = OwenScrambleReversed(x, 0x89abcdefu) & 0xffffu;
         ASSERT_FALSE(seen[s]);
         seen[s] = true;
     }
@@ -136,21 +135,29 @@ TEST(SobolConstructionTest, OwenScramblingKeepsPrefixes) {
 
 // Across pairs of values differing first in digit n, the next four digits of their
 // scrambles must be independent uniform bits over keys: exact nested scrambling leaves
-// the 16 patterns of their xor equally likely.
+// the 16 patterns of their xor equally likely. Checked for each of the three 32-bit keys
+// the sampler takes from a dimension's 64-bit hash.
 TEST(SobolConstructionTest, OwenScramblingDecorrelatesLaterDigits) {
     constexpr int kTrials = 32768;
     constexpr int kDigits = 28;
-    const double alpha = kChiSquareSignificance / kDigits;  // Bonferroni
-    for (int n = 0; n < kDigits; ++n) {
-        std::vector<double> observed(16, 0), expected(16, kTrials / 16.0);
-        for (int t = 0; t < kTrials; ++t) {
-            uint64_t key = Hash(n, t);
-            uint32_t x = static_cast<uint32_t>(Hash(n, t, 1)) & ~(1u << n);
-            uint32_t d = OwenScrambleReversed(x, key) ^ OwenScrambleReversed(x | (1u << n), key);
-            ++observed[(d >> (n + 1)) & 15];
+    const char* kKeyNames[] = {"low half", "high half", "SobolSecondKey"};
+    const double alpha = kChiSquareSignificance / (3 * kDigits);  // Bonferroni
+    for (int which = 0; which < 3; ++which) {
+        for (int n = 0; n < kDigits; ++n) {
+            std::vector<double> observed(16, 0), expected(16, kTrials / 16.0);
+            for (int t = 0; t < kTrials; ++t) {
+                uint64_t key = Hash(n, t, TestSeed(0));
+                uint32_t seed = which == 0   ? static_cast<uint32_t>(key)
+                                : which == 1 ? static_cast<uint32_t>(key >> 32)
+                                             : SobolSecondKey(key);
+                uint32_t x = static_cast<uint32_t>(Hash(n, t, 1, TestSeed(0))) & ~(1u << n);
+                uint32_t d =
+                    OwenScrambleReversed(x, seed) ^ OwenScrambleReversed(x | (1u << n), seed);
+                ++observed[(d >> (n + 1)) & 15];
+            }
+            ChiSquareResult r = ChiSquareTest(observed, expected);
+            EXPECT_GE(r.p_value, alpha) << kKeyNames[which] << ", digit " << n << ": " << r;
         }
-        ChiSquareResult r = ChiSquareTest(observed, expected);
-        EXPECT_GE(r.p_value, alpha) << "digit " << n << ": " << r;
     }
 }
 
@@ -469,18 +476,17 @@ TEST(SobolSamplerTest, ValuesFollowTheDocumentedFormulas) {
         return static_cast<float>(ReverseBits32(reversed) >> 8) * 0x1p-24f;
     };
     auto shuffled = [&](uint64_t k) {
-        return ReverseBits32(ScrambleUpwards(ReverseBits32(index), k));
+        return ReverseBits32(OwenScrambleReversed(ReverseBits32(index), static_cast<uint32_t>(k)));
     };
     auto sample_1d = [&](uint64_t d) {
         uint64_t k = Hash(seed, pixel.x, pixel.y, d);
-        return unit(OwenScrambleReversed(shuffled(k), MixBits(k + kSobolOwenKeyX)));
+        return unit(OwenScrambleReversed(shuffled(k), static_cast<uint32_t>(k >> 32)));
     };
     auto sample_2d = [&](uint64_t d) {
         uint64_t k = Hash(seed, pixel.x, pixel.y, d);
         uint32_t i = shuffled(k);
-        return Vec2(
-            unit(OwenScrambleReversed(i, MixBits(k + kSobolOwenKeyX))),
-            unit(OwenScrambleReversed(SobolSecondReversed(i), MixBits(k + kSobolOwenKeyY))));
+        return Vec2(unit(OwenScrambleReversed(i, static_cast<uint32_t>(k >> 32))),
+                    unit(OwenScrambleReversed(SobolSecondReversed(i), SobolSecondKey(k))));
     };
     SobolSampler sampler(8, seed);
     sampler.StartPixelSample(pixel, index, 2);
@@ -495,8 +501,8 @@ TEST(SobolSamplerTest, ValuesFollowTheDocumentedFormulas) {
     EXPECT_EQ(p.y, expected.y);
     // Pinned values, so that a change to any hash constant shows.
     sampler.StartPixelSample({0, 0}, 0);
-    EXPECT_EQ(sampler.Get1D(), 0x1.957a8p-3f);
-    EXPECT_EQ(sampler.Get1D(), 0x1.52a2fp-2f);
+    EXPECT_EQ(sampler.Get1D(), 0x1.d784p-8f);
+    EXPECT_EQ(sampler.Get1D(), 0x1.046b44p-1f);
 }
 
 TEST(SamplerNamesTest, NamesRoundTrip) {

@@ -1,23 +1,21 @@
 #include "sampler/sobol_sampler.h"
 
-#include <algorithm>
-
 #include "core/rng.h"
 #include "sampler/stream_keys.h"
 
 namespace tessera {
 namespace {
 
-// The top 24 bits of a binary fraction: exactly representable, below 1.
-float ToUnit(uint32_t fraction) {
-    return std::min(static_cast<float>(fraction >> 8) * 0x1p-24f, kOneMinusEpsilon);
-}
+// The top 24 bits of a binary fraction: exactly representable, at most 1 - 2^-24.
+float ToUnit(uint32_t fraction) { return static_cast<float>(fraction >> 8) * 0x1p-24f; }
 
 // The Sobol index of the current sample in the copy of the sequence that `key` names. Read
 // as a binary fraction with bit 0 first, it is already the van der Corput value reversed.
 uint32_t ShuffledIndex(uint32_t reversed_index, uint64_t key) {
-    return ReverseBits32(ScrambleUpwards(reversed_index, key));
+    return ReverseBits32(OwenScrambleReversed(reversed_index, static_cast<uint32_t>(key)));
 }
+
+uint32_t FirstKey(uint64_t key) { return static_cast<uint32_t>(key >> 32); }
 
 }  // namespace
 
@@ -30,14 +28,14 @@ void SobolSampler::StartPixelSample(Vec2i pixel, int sample_index, int dim) {
 float SobolSampler::Get1D() {
     uint64_t key = HashCombine(pixel_key_, dim_++);
     uint32_t index = ShuffledIndex(reversed_index_, key);
-    return ToUnit(ReverseBits32(OwenScrambleReversed(index, MixBits(key + kSobolOwenKeyX))));
+    return ToUnit(ReverseBits32(OwenScrambleReversed(index, FirstKey(key))));
 }
 
 Vec2 SobolSampler::Sample2D(uint64_t dim) const {
     uint64_t key = HashCombine(pixel_key_, dim);
     uint32_t index = ShuffledIndex(reversed_index_, key);
-    uint32_t x = OwenScrambleReversed(index, MixBits(key + kSobolOwenKeyX));
-    uint32_t y = OwenScrambleReversed(SobolSecondReversed(index), MixBits(key + kSobolOwenKeyY));
+    uint32_t x = OwenScrambleReversed(index, FirstKey(key));
+    uint32_t y = OwenScrambleReversed(SobolSecondReversed(index), SobolSecondKey(key));
     return {ToUnit(ReverseBits32(x)), ToUnit(ReverseBits32(y))};
 }
 

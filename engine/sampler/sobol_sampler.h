@@ -7,21 +7,23 @@
 // Corput radical inverse of the index bits, dimension 1 the Pascal matrix mod 2 applied to
 // them (output digit k is the parity of the index bits whose positions contain k's bits).
 //
-// Sample i of pixel p in dimension d, with k = Hash(seed, p.x, p.y, d):
+// Sample i of pixel p in dimension d, with k = Hash(seed, p.x, p.y, d), whose low and high
+// 32 bits are k0 and k1, and k2 = SobolSecondKey(k) (a 128-bit product of k, folded):
 //
-//   index(i, d) = rev(ScrambleUpwards(rev(i), k))   (rev: 32-bit reversal)
-//   Get1D       = Owen(vdc(index), MixBits(k + cx))
-//   Get2D       = (Owen(vdc(index), MixBits(k + cx)), Owen(sobol1(index), MixBits(k + cy)))
+//   index(i, d) = rev(Owen(rev(i), k0))   (rev: 32-bit reversal)
+//   Get1D       = Owen(vdc(index), k1)
+//   Get2D       = (Owen(vdc(index), k1), Owen(sobol1(index), k2))
 //   GetPixel2D  = Get2D at d = kPixelDimension
 //
 // The shuffle flips index bit j by a hash of the bits above j.
 //
 // Owen is nested uniform scrambling: digit n of the value flips by a random function of
-// the digits before it, keyed by (seed, pixel, dimension, coordinate). The first five digits
-// take their flips exactly from a 64-bit hash (31 bits: 1 + 2 + 4 + 8 + 16 prefixes); the
-// deeper ones from a Laine-Karras style hash (ScrambleUpwards). Owen scrambling keeps every
-// elementary interval's count, so the scrambled points stay a (0,2)-sequence; each value is
-// uniform.
+// the digits before it, keyed by (seed, pixel, dimension, coordinate). It is computed on the
+// digit-reversed value by a Laine-Karras style hash (the constants of Vegdahl's variant,
+// which passes the decorrelation test in tests/sobol_sampler_test.cpp for every digit):
+// additions carry upwards, odd multiplies and x ^= x * even only move lower bits into higher
+// ones, so no digit ever depends on a later one. Owen scrambling keeps every elementary
+// interval's count, so the scrambled points stay a (0,2)-sequence; each value is uniform.
 //
 // The index shuffle maps every aligned block of 2^m indices onto an aligned block of 2^m
 // Sobol indices, so the first 2^m samples of a pixel, and every later aligned run of 2^m,
@@ -38,8 +40,8 @@
 // are a little less varied than a full permutation's (all 16 samples of a pixel land on
 // one diagonal of two dimensions' halves in 2 / 2^8 of pixels rather than 2 / C(16, 8)).
 //
-// Each call costs a few hashes and bit tricks, with no table and no loop: about what a
-// StratifiedSampler call costs (bench/bench_sampler).
+// Each call costs one 64-bit hash, two or three 32-bit scrambles and bit reversals, with no
+// table and no loop (bench/bench_sampler measures it).
 
 #include <cstdint>
 
@@ -68,38 +70,26 @@ inline constexpr uint32_t SobolSecondReversed(uint32_t index) {
     return index;
 }
 
-// A bijection of 32-bit words in which each bit flips by a hash of `key` and the bits
-// below it: on digit-reversed values, a nested (Owen-style) scramble in the manner of Laine
-// and Karras. Additions carry upwards, odd multiplies and x ^= x * even only move lower
-// bits into higher ones, so no bit ever depends on a bit above it.
-inline constexpr uint32_t ScrambleUpwards(uint32_t x, uint64_t key) {
-    uint32_t a = static_cast<uint32_t>(key), b = static_cast<uint32_t>(key >> 32);
-    x += a;
-    x ^= x * 0x6a09e668u;
-    x *= b | 1u;
-    x ^= x * 0xbb67ae84u;
-    x += b;
-    x ^= x * ((a ^ (b >> 7)) & ~1u);
+// Owen scrambling of a digit-reversed value (bit k weighs 2^-(k+1)), keyed by 32 random
+// bits: a bijection of 32-bit words in which each bit flips by a hash of the seed and the
+// bits below it. Returns the scrambled value, still reversed.
+inline constexpr uint32_t OwenScrambleReversed(uint32_t x, uint32_t seed) {
+    x ^= x * 0x3d20adeau;
+    x += seed;
+    x *= (seed >> 16) | 1u;
+    x ^= x * 0x05526c56u;
+    x ^= x * 0x53a22864u;
     return x;
 }
 
-// Owen scrambling of a digit-reversed value (bit k weighs 2^-(k+1)), keyed by 64 random
-// bits: the first five digits flip exactly by the key's low 31 bits (one bit per prefix:
-// 1 + 2 + 4 + 8 + 16), the deeper ones by ScrambleUpwards keyed by a multiply of the key
-// with its halves swapped, whose low half depends only on the key's high half. Returns the
-// scrambled value, still reversed.
-inline constexpr uint32_t OwenScrambleReversed(uint32_t x, uint64_t key) {
-    uint32_t r = static_cast<uint32_t>(key);
-    uint32_t flips = (r & 1u) | ((r >> (1 + (x & 1u))) & 1u) << 1 |
-                     ((r >> (3 + (x & 3u))) & 1u) << 2 | ((r >> (7 + (x & 7u))) & 1u) << 3 |
-                     ((r >> (15 + (x & 15u))) & 1u) << 4;
-    uint64_t deep_key = ((key << 32) | (key >> 32)) * 0x9e3779b97f4a7c15ull;
-    return (ScrambleUpwards(x, deep_key) & ~31u) | ((x ^ flips) & 31u);
+// A third 32-bit key from a 64-bit one whose halves key the shuffle and the first
+// coordinate: the high and low halves of a full 64 x 64-bit product, xored.
+inline constexpr uint32_t SobolSecondKey(uint64_t key) {
+    const unsigned __int128 m =
+        static_cast<unsigned __int128>(key) * 0x9e3779b97f4a7c15ull;
+    const uint64_t mixed = static_cast<uint64_t>(m) ^ static_cast<uint64_t>(m >> 64);
+    return static_cast<uint32_t>(mixed ^ (mixed >> 32));
 }
-
-// cx and cy above: offsets that give each coordinate of a dimension its own Owen key.
-inline constexpr uint64_t kSobolOwenKeyX = 0x243f6a8885a308d3ull;
-inline constexpr uint64_t kSobolOwenKeyY = 0x13198a2e03707344ull;
 
 class SobolSampler final : public Sampler {
   public:
