@@ -11,8 +11,11 @@
 // seconds and the efficiency relative to the first configuration ((MSE x s) of the first /
 // (MSE x s)) use it.
 //
-//   bench_pt SCENE.json REFERENCE.exr [--threads N] [--emitter L] [--repeat R] CONFIG...
+//   bench_pt SCENE.json REFERENCE.exr [--threads N] [--emitter L] [--repeat R] [--frame F]
+//            CONFIG...
 //
+// --frame renders frame F of an animated scene (its shutter interval; default: the scene's
+// render.frame).
 // A CONFIG is space-separated key=value pairs in the render-settings codec's keys
 // (plan/settings_codec.cpp: spp, sampler, filter.type, filter.sampling, rr_depth,
 // rr_threshold, max_depth, ...), plus isa=STRING, the Embree device configuration
@@ -105,12 +108,12 @@ int main(int argc, char** argv) {
     if (argc < 4) {
         std::fprintf(stderr,
                      "usage: bench_pt SCENE.json REFERENCE.exr [--threads N] [--emitter L] "
-                     "[--repeat R] CONFIG...\n");
+                     "[--repeat R] [--frame F] CONFIG...\n");
         return 2;
     }
     const std::string scene_path = argv[1];
     const Image ref = ReadImage(argv[2]);
-    int threads = 0, repeat = 4;
+    int threads = 0, repeat = 4, frame = -1;
     float emitter = 1.5f;
     std::vector<Config> configs;
     for (int i = 3; i < argc; ++i) {
@@ -121,12 +124,15 @@ int main(int argc, char** argv) {
             emitter = std::atof(argv[++i]);
         else if (a == "--repeat" && i + 1 < argc)
             repeat = std::max(1, std::atoi(argv[++i]));
+        else if (a == "--frame" && i + 1 < argc)
+            frame = std::max(0, std::atoi(argv[++i]));
         else
             configs.push_back(ParseConfig(a));
     }
     RenderOverrides size;
     size.width = ref.width;
     size.height = ref.height;
+    if (frame >= 0) size.frame = frame;
     // One scene per Embree device configuration (the device is made with the scene).
     std::map<std::string, LoadedScene> scenes;
     for (const Config& c : configs) {

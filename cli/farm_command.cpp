@@ -37,6 +37,7 @@ struct FarmOptions {
     std::string output_dir;
     std::string keep_state;
     JobOptions job;
+    MovieFlags movie;
     bool quiet = false;
 };
 
@@ -236,7 +237,8 @@ int RunFarmJob(const FarmOptions& o, const v1::JobSpec& spec,
             follow.should_stop = [&farm] { return farm.Problem(); };
             code = FollowJob(client, job_id, follow);
             if (code == 0) {
-                for (const std::string& path : FetchFrames(client, job_id, o.output_dir, true))
+                for (const std::string& path :
+                     FetchFrames(client, job_id, o.output_dir, true, o.movie))
                     std::printf("%s\n", path.c_str());
                 std::fflush(stdout);
             }
@@ -253,8 +255,9 @@ int RunFarmJob(const FarmOptions& o, const v1::JobSpec& spec,
     }
 }
 
-void RunFarm(const FarmOptions& o, const CLI::App& cmd) {
+void RunFarm(FarmOptions& o, const CLI::App& cmd) {
     v1::JobSpec spec = o.job.Spec(cmd, o.scene);
+    if (cmd.count("--fps") == 0) o.movie.fps = ReadSceneClock(o.scene).fps;
     // A broken scene or a missing program stops us before anything starts.
     std::vector<BundleEntry> bundle = CollectBundle(o.scene);
     Programs programs;
@@ -284,7 +287,8 @@ void AddFarmCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "farm",
         "Render on a farm on this machine: a coordinator and N workers for one job, then "
-        "fetch its frames to DIR/<name>.<frame:04>.exr (+ .png)");
+        "fetch its frames to DIR/<name>.<frame:04>.exr (+ .png), and a movie preview "
+        "DIR/<name>.mp4 of two or more frames");
     cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
     cmd->add_option("-o,--output", o->output_dir, "Folder for the frames")->required();
     cmd->add_option("--workers", o->workers, "Worker processes")
@@ -297,6 +301,7 @@ void AddFarmCommand(CLI::App& app) {
                     "Keep the coordinator's state, frames and logs in this folder (default: a "
                     "temporary folder, removed unless the job fails)");
     o->job.AddTo(*cmd);
+    o->movie.AddTo(*cmd);
     cmd->add_flag("-q,--quiet", o->quiet, "No progress display");
     cmd->callback([o, cmd] { RunFarm(*o, *cmd); });
 }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "farm_client.h"
+#include "movie.h"
 
 namespace tessera {
 
@@ -26,8 +27,12 @@ void AddFarmCommand(CLI::App& app);
 int FollowJob(FarmClient& client, const std::string& job_id, const FollowOptions& options);
 
 // Downloads every finished frame of the job into `dir` as <name>.<frame:04>.exr (and
-// .png previews if asked); returns the paths written. Throws if no frame is finished.
+// .png previews if asked), then, if `movie` wants one and two or more frames were
+// fetched, the movie preview <name>.mp4 from the frames' previews (downloaded into a
+// temporary folder when they were not asked for); returns the paths written. Throws if
+// no frame is finished.
 std::vector<std::string> FetchFrames(FarmClient& client, const std::string& job_id,
-                                     const std::string& dir, bool previews);
+                                     const std::string& dir, bool previews,
+                                     const MovieFlags& movie);
 
 }  // namespace tessera

@@ -89,6 +89,7 @@ struct JobCommandOptions {
     std::string output_dir;
     bool preview = false;
     bool quiet = false;
+    MovieFlags movie;
 };
 
 // Workers that get no tasks for now, because they failed too many in a row.
@@ -150,7 +151,7 @@ void RunCancel(const JobCommandOptions& o) {
 
 void RunFetch(const JobCommandOptions& o) {
     FarmClient client(o.coordinator);
-    for (const std::string& path : FetchFrames(client, o.job_id, o.output_dir, o.preview))
+    for (const std::string& path : FetchFrames(client, o.job_id, o.output_dir, o.preview, o.movie))
         std::printf("%s\n", path.c_str());
 }
 
@@ -184,7 +185,8 @@ int FollowJob(FarmClient& client, const std::string& job_id, const FollowOptions
 }
 
 std::vector<std::string> FetchFrames(FarmClient& client, const std::string& job_id,
-                                     const std::string& dir, bool previews) {
+                                     const std::string& dir, bool previews,
+                                     const MovieFlags& movie) {
     v1::JobStatus job = client.GetJob(job_id);
     std::vector<int> done;
     for (const v1::FrameStatus& f : job.frames())
@@ -196,17 +198,32 @@ std::vector<std::string> FetchFrames(FarmClient& client, const std::string& job_
         spdlog::warn("job {} is {}: fetching the {} of {} frames that are done", job_id,
                      JobStateName(job.state()), done.size(), job.frames_size());
     fs::create_directories(dir);
-    std::vector<std::string> written;
+    const bool want_movie = !movie.no_movie && done.size() >= 2;
+    // Previews that only the movie needs go to a folder of their own, removed after.
+    const fs::path movie_previews = fs::path(dir) / ("." + job.name() + ".movie-previews");
+    if (want_movie && !previews) fs::create_directories(movie_previews);
+    std::vector<std::string> written, pngs;
     for (int frame : done) {
         char number[16];
         std::snprintf(number, sizeof number, "%04d", frame);
-        std::string stem = (fs::path(dir) / (job.name() + "." + number)).string();
+        const std::string file = job.name() + "." + number;
+        std::string stem = (fs::path(dir) / file).string();
         client.DownloadFrame(job_id, frame, false, stem + ".exr");
         written.push_back(stem + ".exr");
         if (previews) {
             client.DownloadFrame(job_id, frame, true, stem + ".png");
             written.push_back(stem + ".png");
+            pngs.push_back(stem + ".png");
+        } else if (want_movie) {
+            pngs.push_back((movie_previews / (file + ".png")).string());
+            client.DownloadFrame(job_id, frame, true, pngs.back());
         }
+    }
+    if (want_movie) {
+        const std::string path = (fs::path(dir) / (job.name() + ".mp4")).string();
+        if (MaybeWriteMoviePreview(movie, pngs, path)) written.push_back(path);
+        std::error_code ec;
+        if (!previews) fs::remove_all(movie_previews, ec);
     }
     return written;
 }
@@ -239,6 +256,7 @@ void AddJobCommands(CLI::App& app) {
         app, "fetch", "Download a job's finished frames as DIR/<name>.<frame:04>.exr", fetch, true);
     fetch_cmd->add_option("-o,--output", fetch->output_dir, "Folder for the frames")->required();
     fetch_cmd->add_flag("--preview", fetch->preview, "Also the PNG previews (<name>.<frame>.png)");
+    fetch->movie.AddTo(*fetch_cmd);
     fetch_cmd->callback([fetch] { RunFetch(*fetch); });
 }
 

@@ -6,31 +6,11 @@
 #include <filesystem>
 
 #include "convert.h"
+#include "frame_list.h"
+#include "scene/scene_records.h"
 #include "security_options.h"
 
 namespace tessera {
-
-namespace {
-
-// "A-B" or "A" with 0 <= A <= B; false for anything else.
-bool ParseFrames(const std::string& text, int* start, int* end) {
-    auto number = [](const std::string& s, int* out) {
-        if (s.empty() || s.size() > 9) return false;
-        for (char c : s)
-            if (!std::isdigit(static_cast<unsigned char>(c))) return false;
-        *out = std::stoi(s);
-        return true;
-    };
-    size_t dash = text.find('-');
-    if (dash == std::string::npos) {
-        *end = *start = 0;
-        return number(text, start) && number(text, end);
-    }
-    return number(text.substr(0, dash), start) && number(text.substr(dash + 1), end) &&
-           *end >= *start;
-}
-
-}  // namespace
 
 void RenderFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
@@ -65,6 +45,10 @@ void RenderFlags::AddTo(CLI::App& cmd) {
            "--sampler", sampler,
            "Pixel sampler: sobol (Owen-scrambled Sobol, the default), stratified or independent")
         ->check(CLI::IsMember(SamplerTypeNames()));
+    cmd.add_option("--time-sampler", time_sampler,
+                   "How a pixel's samples spread over the shutter: stratified (a space-time "
+                   "pattern, the default) or independent")
+        ->check(CLI::IsMember({"independent", "stratified"}));
     cmd.add_option("--filter", filter,
                    "Pixel filter: box, gaussian, mitchell or tent, at its default radius "
                    "(replaces the scene's filter when the type differs)")
@@ -94,6 +78,8 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     if (cmd.count("--integrator")) o.integrator = integrator;
     if (cmd.count("--sampler"))
         o.sampler = ParseSamplerType(sampler).value();  // checked by --sampler's IsMember
+    if (cmd.count("--time-sampler"))
+        o.time_sampler = ParseTimeSampler(time_sampler).value();  // checked by IsMember
     if (cmd.count("--filter")) o.filter = ParseFilterType(filter);
     if (cmd.count("--filter-sampling")) o.filter_sampling = ParseFilterSampling(filter_sampling);
     if (cmd.count("--irradiance-cache")) o.irradiance_cache = true;
@@ -109,15 +95,7 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
 }
 
 void JobOptions::AddTo(CLI::App& cmd) {
-    cmd.add_option("--frames", frames, "Frame range A-B (inclusive) or one frame A")
-        ->check(
-            [](const std::string& text) {
-                int a, b;
-                return ParseFrames(text, &a, &b) ? std::string()
-                                                 : "expected A-B with 0 <= A <= B, or A";
-            },
-            "A-B")
-        ->capture_default_str();
+    AddFramesOption(cmd, frames);
     render.AddTo(cmd);
     cmd.add_option("--priority", priority, "Job priority: higher runs first")
         ->capture_default_str();
@@ -131,13 +109,29 @@ v1::JobSpec JobOptions::Spec(const CLI::App& cmd, const std::string& scene) cons
     v1::JobSpec spec;
     spec.set_name(name.empty() ? DefaultJobName(scene) : name);
     *spec.mutable_options() = ToProto(o);
-    int start = 0, end = 0;
-    if (!ParseFrames(frames, &start, &end))
-        throw std::invalid_argument("bad frame range '" + frames + "'");
-    spec.set_frame_start(start);
-    spec.set_frame_end(end);
+    // Without --frames, the frames the scene's animation section names.
+    std::vector<int> list;
+    if (cmd.count("--frames") == 0) {
+        const SceneClock clock = ReadSceneClock(scene);
+        for (int f = clock.frame_start; f <= clock.frame_end; ++f) list.push_back(f);
+    } else {
+        list = ParseFrameList(frames);
+    }
+    spec.set_frame_start(list.front());
+    spec.set_frame_end(list.back());
+    // A range travels as frame_start..frame_end alone, which every coordinator reads.
+    if (!IsFrameRange(list)) spec.mutable_frames()->Add(list.begin(), list.end());
     spec.set_priority(priority);
     return spec;
+}
+
+CLI::Option* AddFramesOption(CLI::App& cmd, std::string& frames) {
+    return cmd
+        .add_option("--frames", frames,
+                    "Frames: A, A-B (inclusive), A-B:step (every step-th from A to B) or a comma "
+                    "list of them, e.g. 1-9:2,20,30-32")
+        ->check([](const std::string& text) { return CheckFrameList(text); }, "LIST")
+        ->capture_default_str();
 }
 
 void AddCoordinatorOption(CLI::App& cmd, CoordinatorEndpoint& endpoint) {
@@ -152,6 +146,11 @@ void LogToStderr() {
     auto logger = spdlog::stderr_color_mt("tessera");
     logger->set_pattern("%^%l%$: %v");
     spdlog::set_default_logger(logger);
+}
+
+SceneClock ReadSceneClock(const std::string& scene) {
+    const AnimationSettings a = ParseSceneFile(scene).animation;
+    return SceneClock{a.fps, a.frame_start, a.frame_end};
 }
 
 std::string DefaultJobName(const std::string& scene) {

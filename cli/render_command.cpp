@@ -1,4 +1,5 @@
-// `tessera render SCENE.json -o OUT.exr`: a local render, no server.
+// `tessera render SCENE.json -o OUT.exr`: a local render, no server. With --frames, each
+// frame in turn to OUT.<frame:04>.exr (+ preview), then an MP4 movie preview OUT.mp4.
 
 #include "render_command.h"
 
@@ -11,9 +12,11 @@
 #include <optional>
 
 #include "core/error.h"
+#include "frame_list.h"
 #include "integrator/integrator.h"
 #include "io/image_io.h"
 #include "job_options.h"
+#include "movie.h"
 #include "plan/local_runner.h"
 #include "progress.h"
 #include "scene/scene_loader.h"
@@ -28,6 +31,8 @@ struct RenderOptions {
     bool quiet = false;
     RenderFlags render;
     int frame = 0;
+    std::string frames;
+    MovieFlags movie;
 };
 
 namespace fs = std::filesystem;
@@ -67,11 +72,20 @@ void CheckOutputs(const OutputFiles& files) {
             throw SceneError("", fmt::format("output path {} is a directory", path));
 }
 
-void RunRender(RenderOptions& o, CLI::App& cmd) {
-    const OutputFiles files = PlanOutputs(o.output);
-    CheckOutputs(files);
-    RenderOverrides overrides = o.render.Overrides(cmd);
-    if (cmd.count("--frame")) overrides.frame = o.frame;
+// The files of one frame of several: the frame number before the extension,
+// "out/cornell.exr" -> "out/cornell.0007.exr".
+OutputFiles NumberedOutputs(const OutputFiles& files, int frame) {
+    auto numbered = [frame](const std::string& path) {
+        fs::path p(path);
+        return p.replace_extension(fmt::format(".{:04d}{}", frame, p.extension().string()))
+            .string();
+    };
+    return {numbered(files.exr), numbered(files.rgb), files.rgb_format};
+}
+
+// Renders one frame (the scene loaded for it through `overrides.frame`) into `files`.
+void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
+                 const OutputFiles& files) {
     LoadedScene loaded = LoadSceneFile(o.scene, overrides);
     const RenderSettings& s = loaded.settings;
     Vec2i res = loaded.scene->GetCamera().Resolution();
@@ -125,6 +139,39 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
                  files.rgb, seconds, samples / seconds, rays / seconds * 1e-6);
 }
 
+void RunRender(RenderOptions& o, CLI::App& cmd) {
+    // Without --frame or --frames, the frames the scene's animation section names (one
+    // frame, the scene's render.frame, unless it names several).
+    const SceneClock clock = ReadSceneClock(o.scene);
+    const bool scene_range = cmd.count("--frames") == 0 && cmd.count("--frame") == 0 &&
+                             clock.frame_end > clock.frame_start;
+    const bool listed = cmd.count("--frames") > 0 || scene_range;
+    std::vector<int> frames =
+        cmd.count("--frames") ? ParseFrameList(o.frames) : std::vector<int>{o.frame};
+    if (scene_range) {
+        frames.clear();
+        for (int f = clock.frame_start; f <= clock.frame_end; ++f) frames.push_back(f);
+    }
+    if (cmd.count("--fps") == 0) o.movie.fps = clock.fps;
+    const OutputFiles files = PlanOutputs(o.output);
+    CheckOutputs(files);
+    RenderOverrides overrides = o.render.Overrides(cmd);
+    // Numbered files whenever a list is asked for, so that the names do not depend on
+    // how many frames it happens to hold.
+    const bool numbered = listed || frames.size() > 1;
+    std::vector<std::string> previews;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        if (listed || cmd.count("--frame")) overrides.frame = frames[i];
+        if (frames.size() > 1) spdlog::info("frame {} ({} of {})", frames[i], i + 1, frames.size());
+        const OutputFiles frame_files = numbered ? NumberedOutputs(files, frames[i]) : files;
+        RenderFrame(o, overrides, frame_files);
+        previews.push_back(frame_files.rgb);
+    }
+    if (numbered)
+        MaybeWriteMoviePreview(o.movie, previews,
+                               fs::path(o.output).replace_extension(".mp4").string());
+}
+
 }  // namespace
 
 void AddRenderCommand(CLI::App& app) {
@@ -139,7 +186,16 @@ void AddRenderCommand(CLI::App& app) {
     o->render.AddTo(*cmd);
     cmd->add_option("--threads", o->threads, "Render threads (0: all cores)")
         ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--frame", o->frame, "Frame number (animation)")->check(CLI::NonNegativeNumber);
+    CLI::Option* frame = cmd->add_option("--frame", o->frame, "Frame number (animation)")
+                             ->check(CLI::NonNegativeNumber);
+    AddFramesOption(*cmd, o->frames)
+        ->excludes(frame)
+        ->description(
+            "Frames to render one after the other (A, A-B, A-B:step or a comma list of them, "
+            "e.g. 1-9:2,20); -o gets the frame number before its extension "
+            "(out.exr: out.0001.exr, ...), and an MP4 movie preview out.mp4 is made from the "
+            "previews");
+    o->movie.AddTo(*cmd);
     cmd->add_flag("-q,--quiet", o->quiet, "No progress display");
     cmd->callback([o, cmd] { RunRender(*o, *cmd); });
 }

@@ -29,6 +29,12 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
             throw std::invalid_argument("unknown filter sampling '" + o.filter_sampling() +
                                         "' (known: splat, importance)");
     }
+    if (o.has_time_sampler()) {
+        r.time_sampler = ParseTimeSampler(o.time_sampler());
+        if (!r.time_sampler)
+            throw std::invalid_argument("unknown time sampler '" + o.time_sampler() +
+                                        "' (known: independent, stratified)");
+    }
     if (o.has_irradiance_cache()) r.irradiance_cache = o.irradiance_cache();
     if (o.has_photons_global()) r.photons_global = o.photons_global();
     if (o.has_photons_caustic()) r.photons_caustic = o.photons_caustic();
@@ -58,6 +64,7 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.sampler) o.set_sampler(SamplerTypeName(*r.sampler));
     if (r.filter) o.set_filter(FilterTypeName(*r.filter));
     if (r.filter_sampling) o.set_filter_sampling(FilterSamplingName(*r.filter_sampling));
+    if (r.time_sampler) o.set_time_sampler(TimeSamplerName(*r.time_sampler));
     if (r.irradiance_cache) o.set_irradiance_cache(*r.irradiance_cache);
     if (r.photons_global) o.set_photons_global(*r.photons_global);
     if (r.photons_caustic) o.set_photons_caustic(*r.photons_caustic);

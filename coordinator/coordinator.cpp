@@ -171,7 +171,7 @@ std::string Coordinator::SubmitJob(const v1::JobSpec& spec, const TokenLimits& t
     // The scene decides what the spec leaves open (its resolution, say): check the
     // resolved job.
     const JobSettings& settings = planned.job.settings;
-    const int frames = planned.job.frame_end - planned.job.frame_start + 1;
+    const int frames = planned.job.NumFrames();
     if (token_limits.max_frames && frames > *token_limits.max_frames)
         ThrowError(ErrorCode::kResourceExhausted,
                    fmt::format("{} frames requested; {} allows at most {} per job", frames, token,

@@ -82,15 +82,21 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
             Invalid("job name '" + spec.name() + "' may contain only A-Z a-z 0-9 . _ -");
     if (spec.scene_path().empty()) Invalid("scene_path is empty");
     // Every number is range-checked before any arithmetic on it.
-    if (spec.frame_start() < 0)
-        Invalid(fmt::format("frame_start {} is negative", spec.frame_start()));
-    if (spec.frame_start() > kMaxFrameNumber || spec.frame_end() > kMaxFrameNumber)
-        Invalid(fmt::format("frames {}-{} are beyond the last frame number allowed, {}",
-                            spec.frame_start(), spec.frame_end(), kMaxFrameNumber));
-    if (spec.frame_end() < spec.frame_start())
-        Invalid(fmt::format("frame_end {} is before frame_start {}", spec.frame_end(),
-                            spec.frame_start()));
-    const int64_t frames = int64_t(spec.frame_end()) - spec.frame_start() + 1;
+    if (spec.frames_size() > 0) {
+        CheckFrameList(spec);
+    } else {
+        if (spec.frame_start() < 0)
+            Invalid(fmt::format("frame_start {} is negative", spec.frame_start()));
+        if (spec.frame_start() > kMaxFrameNumber || spec.frame_end() > kMaxFrameNumber)
+            Invalid(fmt::format("frames {}-{} are beyond the last frame number allowed, {}",
+                                spec.frame_start(), spec.frame_end(), kMaxFrameNumber));
+        if (spec.frame_end() < spec.frame_start())
+            Invalid(fmt::format("frame_end {} is before frame_start {}", spec.frame_end(),
+                                spec.frame_start()));
+    }
+    const int64_t frames = spec.frames_size() > 0
+                               ? spec.frames_size()
+                               : int64_t(spec.frame_end()) - spec.frame_start() + 1;
     if (frames > limits_.max_frames)
         TooLarge(fmt::format("{} frames requested; this coordinator allows at most {} per job",
                              frames, limits_.max_frames));
@@ -149,6 +155,31 @@ void JobPlanner::CheckSpec(const v1::JobSpec& spec) const {
         Invalid(fmt::format("ic_passes {} is not between 0 and 8", o.ic_passes()));
     CheckSettings(o.has_width() ? o.width() : 1, o.has_height() ? o.height() : 1,
                   o.has_spp() ? o.spp() : 1, 0);
+}
+
+void JobPlanner::CheckFrameList(const v1::JobSpec& spec) const {
+    if (spec.frames_size() > limits_.max_frames)
+        TooLarge(fmt::format("{} frames listed; this coordinator allows at most {} per job",
+                             spec.frames_size(), limits_.max_frames));
+    for (int i = 0; i < spec.frames_size(); ++i) {
+        const int frame = spec.frames(i);
+        if (frame < 0) Invalid(fmt::format("frames[{}] = {} is negative", i, frame));
+        if (frame > kMaxFrameNumber)
+            Invalid(fmt::format("frames[{}] = {} is beyond the last frame number allowed, {}", i,
+                                frame, kMaxFrameNumber));
+        if (i == 0) continue;
+        const int previous = spec.frames(i - 1);
+        if (frame == previous)
+            Invalid(
+                fmt::format("frame {} is listed twice (frames[{}] and frames[{}]); the frame "
+                            "list must be sorted and without duplicates",
+                            frame, i - 1, i));
+        if (frame < previous)
+            Invalid(
+                fmt::format("frames are not sorted: frames[{}] = {} follows {}; the frame "
+                            "list must be sorted and without duplicates",
+                            i, frame, previous));
+    }
 }
 
 void JobPlanner::CheckSettings(int width, int height, int spp, int64_t tasks) const {
@@ -216,7 +247,13 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     }
     const RenderSettings& s = loaded.settings;
     const Vec2i res = loaded.scene->GetCamera().Resolution();
-    const int frames = spec.frame_end() - spec.frame_start() + 1;
+    if (spec.frames_size() > 0) {
+        // The range of a listed job is its first and last frame, for readers of the range.
+        spec.set_frame_start(spec.frames(0));
+        spec.set_frame_end(spec.frames(spec.frames_size() - 1));
+    }
+    const int frames =
+        spec.frames_size() > 0 ? spec.frames_size() : spec.frame_end() - spec.frame_start() + 1;
     if (s.tile_size < 1) Invalid(fmt::format("tile size {} is below 1", s.tile_size));
     // Limits before anything is sized by them (tiles, the renderer).
     const int64_t tiles = ((int64_t(res.x) + s.tile_size - 1) / s.tile_size) *
@@ -244,6 +281,7 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
     job.priority = spec.priority();
     job.frame_start = spec.frame_start();
     job.frame_end = spec.frame_end();
+    job.frames.assign(spec.frames().begin(), spec.frames().end());
     job.render_settings = EncodeRenderSettings(settings);
     job.settings.width = res.x;
     job.settings.height = res.y;

@@ -72,6 +72,8 @@ class JobPlanner {
 
   private:
     void CheckSpec(const v1::JobSpec& spec) const;
+    // The spec's frame list: within the limits, sorted, without duplicates.
+    void CheckFrameList(const v1::JobSpec& spec) const;
     void CheckSettings(int width, int height, int spp, int64_t tasks) const;
 
     const BlobStore& blobs_;

@@ -629,16 +629,20 @@ std::string Scheduler::AddJob(NewJob job) {
         const int64_t id = store_.InsertJob(job, clock_.NowMs());
         txn.Commit();
         job_id = FormatJobId(id);
-        const int frames = job.frame_end - job.frame_start + 1;
+        const int frames = job.NumFrames();
+        const std::string frame_text =
+            job.frames.empty()
+                ? fmt::format("{}..{}", job.frame_start, job.frame_end)
+                : fmt::format("{} listed in {}..{}", frames, job.frame_start, job.frame_end);
         std::string stages;
         for (const NewStage& s : job.stages)
             stages += fmt::format("{}{} {}", stages.empty() ? "" : ", ", s.name, s.num_tasks);
         spdlog::info(
-            "job {} '{}' submitted: frames {}..{}, {}x{}, {} spp, {} {} tasks ({} per frame: "
+            "job {} '{}' submitted: frames {}, {}x{}, {} spp, {} {} tasks ({} per frame: "
             "{}), priority {}",
-            job_id, job.name, job.frame_start, job.frame_end, job.settings.width,
-            job.settings.height, job.settings.spp, job.settings.integrator,
-            int64_t(frames) * job.TasksPerFrame(), job.TasksPerFrame(), stages, job.priority);
+            job_id, job.name, frame_text, job.settings.width, job.settings.height, job.settings.spp,
+            job.settings.integrator, int64_t(frames) * job.TasksPerFrame(), job.TasksPerFrame(),
+            stages, job.priority);
     }
     Emit({{Event::kJob, job_id, "job queued"}, {Event::kWork, job_id, ""}});
     return job_id;

@@ -143,6 +143,17 @@ int NewJob::TasksPerFrame() const {
     return n;
 }
 
+std::vector<int> NewJob::FrameNumbers() const {
+    if (!frames.empty()) return frames;
+    std::vector<int> numbers;
+    for (int f = frame_start; f <= frame_end; ++f) numbers.push_back(f);
+    return numbers;
+}
+
+int NewJob::NumFrames() const {
+    return frames.empty() ? frame_end - frame_start + 1 : static_cast<int>(frames.size());
+}
+
 Store::Store(const std::string& path) : path_(path), db_(path) {
     db_.Exec("PRAGMA journal_mode=WAL");
     db_.Exec("PRAGMA synchronous=NORMAL");
@@ -315,7 +326,7 @@ int64_t Store::InsertJob(const NewJob& job, int64_t now_ms) {
     max_task_id_.Step();
     const int64_t first_task = max_task_id_.Int(0) + 1;
     max_task_id_.Reset();
-    const int frames = job.frame_end - job.frame_start + 1;
+    const int frames = job.NumFrames();
     const int tasks_per_frame = job.TasksPerFrame();
     const JobSettings& s = job.settings;
     insert_job_
@@ -326,7 +337,7 @@ int64_t Store::InsertJob(const NewJob& job, int64_t now_ms) {
         .Run();
     const int64_t job_id = db_.LastInsertRowid();
     int64_t task_id = first_task;
-    for (int f = job.frame_start; f <= job.frame_end; ++f) {
+    for (int f : job.FrameNumbers()) {
         insert_frame_.Bind(job_id, f, int(v1::FRAME_STATE_PENDING), tasks_per_frame, task_id).Run();
         for (size_t si = 0; si < job.stages.size(); ++si) {
             const NewStage& stage = job.stages[si];

@@ -6,10 +6,11 @@
 // queries over prepared statements; the caller (the scheduler) serialises access and
 // groups statements into transactions, so every acknowledged change is one commit.
 //
-// Task ids are allocated contiguously per job, frame by frame, stage by stage, task by
-// task: a frame's tasks are the id range [first_task_id, first_task_id + tasks_total),
-// a stage's are [its first_task_id, + num_tasks), and id order is (job, frame, stage,
-// task index) order. The pending queue is a partial index over (priority DESC, id), so
+// Task ids are allocated contiguously per job, frame by frame (in the order of the job's
+// frame numbers, which need not be consecutive), stage by stage, task by task: a frame's
+// tasks are the id range [first_task_id, first_task_id + tasks_total), a stage's are
+// [its first_task_id, + num_tasks), and id order is (job, frame, stage, task index)
+// order. The pending queue is a partial index over (priority DESC, id), so
 // picking the next task is one index lookup however many tasks are queued. Tasks of a
 // stage whose inputs are not merged yet wait outside it (state kWaiting) until the
 // transaction that records the merge releases them. A task remembers its lease's
@@ -56,9 +57,15 @@ struct NewJob {
     JobSettings settings;
     std::string render_settings;  // EncodeRenderSettings of the resolved settings
     int frame_start = 0, frame_end = 0;
+    // The job's frames when they are a list (sorted, without duplicates; frame_start and
+    // frame_end are its first and last); empty: frame_start..frame_end.
+    std::vector<int> frames;
     std::vector<NewStage> stages;  // of each frame (Scheduler::AddJob fills it in)
 
     int TasksPerFrame() const;
+    // The frame numbers, in order: the list, or every frame of the range.
+    std::vector<int> FrameNumbers() const;
+    int NumFrames() const;
 };
 
 struct JobRow {

@@ -18,7 +18,7 @@ PACKAGES=(
   libtinyobjloader-dev
   libxxhash-dev libzstd-dev libssl-dev
   libnanoflann-dev
-  python3-yaml
+  python3-yaml ffmpeg
   clang libclang-rt-dev ninja-build
 )
 

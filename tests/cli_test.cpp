@@ -407,5 +407,125 @@ TEST_F(CliTest, InlineTrianglesRenderAsTheSameObjMesh) {
     EXPECT_GT(sum, 0) << "the panel is lit";
 }
 
+// --- frame lists and the movie preview ---------------------------------------------------
+
+bool HaveFfmpeg() { return std::system("command -v ffmpeg >/dev/null 2>&1") == 0; }
+
+// PATH for the commands a test runs, restored when the object goes.
+class ScopedPath {
+  public:
+    explicit ScopedPath(const std::string& path) {
+        const char* old = std::getenv("PATH");
+        had_ = old != nullptr;
+        if (old) old_ = old;
+        ::setenv("PATH", path.c_str(), 1);
+    }
+    ~ScopedPath() {
+        if (had_)
+            ::setenv("PATH", old_.c_str(), 1);
+        else
+            ::unsetenv("PATH");
+    }
+
+  private:
+    bool had_ = false;
+    std::string old_;
+};
+
+const std::string kFrameListArgs = " --frames 0-2:2 --spp 1 --width 16 --height 16 -q";
+
+// Frames 0 and 2 of a `--frames 0-2:2` render as dir/x.<frame:04>.exr and .png, and
+// nothing for frame 1 nor an unnumbered x.exr.
+void ExpectFramesZeroAndTwo(const fs::path& dir) {
+    for (const char* name : {"x.0000.exr", "x.0002.exr"}) {
+        ASSERT_TRUE(fs::exists(dir / name)) << name;
+        Image image = ReadImage((dir / name).string());
+        EXPECT_EQ(image.width, 16) << name;
+        EXPECT_EQ(image.height, 16) << name;
+    }
+    EXPECT_EQ(Head(dir / "x.0000.png", 8), kPngMagic);
+    EXPECT_EQ(Head(dir / "x.0002.png", 8), kPngMagic);
+    EXPECT_FALSE(fs::exists(dir / "x.0001.exr"));
+    EXPECT_FALSE(fs::exists(dir / "x.exr"));
+}
+
+TEST_F(CliTest, FrameListRendersNumberedFramesAndAMovie) {
+    const fs::path out = dir_ / "out";
+    fs::create_directories(out);
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (out / "x.exr").string() + kFrameListArgs))
+        << err_;
+    ExpectFramesZeroAndTwo(out);
+    if (!HaveFfmpeg()) GTEST_SKIP() << "ffmpeg is not installed: the movie preview is not checked";
+    ASSERT_TRUE(fs::exists(out / "x.mp4")) << err_;
+    // An MP4 starts with an "ftyp" box.
+    EXPECT_EQ(Head(out / "x.mp4", 8).substr(4), "ftyp");
+}
+
+TEST_F(CliTest, NoMovieFlagWritesOnlyTheFrames) {
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.exr").string() + kFrameListArgs +
+                     " --no-movie"))
+        << err_;
+    ExpectFramesZeroAndTwo(dir_);
+    EXPECT_FALSE(fs::exists(dir_ / "x.mp4"));
+}
+
+TEST_F(CliTest, WithoutFfmpegTheFramesAreWrittenAndOneWarningGiven) {
+    fs::create_directories(dir_ / "empty-bin");
+    int status;
+    {
+        ScopedPath path((dir_ / "empty-bin").string());
+        status = Run("render " + kFurnace + " -o " + (dir_ / "x.exr").string() + kFrameListArgs);
+    }
+    ASSERT_EQ(status, 0) << err_;
+    ExpectFramesZeroAndTwo(dir_);
+    EXPECT_FALSE(fs::exists(dir_ / "x.mp4"));
+    const std::string warning = "movie preview skipped: ffmpeg not found (apt-get install ffmpeg)";
+    const size_t at = err_.find(warning);
+    EXPECT_NE(at, std::string::npos) << err_;
+    EXPECT_EQ(err_.find(warning, at + 1), std::string::npos) << "warned once: " << err_;
+}
+
+TEST_F(CliTest, FailingFfmpegIsAWarningWithItsErrorOutput) {
+    const fs::path bin = dir_ / "bin";
+    fs::create_directories(bin);
+    std::ofstream(bin / "ffmpeg") << "#!/bin/sh\necho 'encoder exploded' >&2\nexit 1\n";
+    fs::permissions(bin / "ffmpeg", fs::perms::owner_all);
+    int status;
+    {
+        ScopedPath path(bin.string() + ":/usr/bin:/bin");
+        status = Run("render " + kFurnace + " -o " + (dir_ / "x.exr").string() + kFrameListArgs);
+    }
+    ASSERT_EQ(status, 0) << err_;
+    ExpectFramesZeroAndTwo(dir_);
+    EXPECT_FALSE(fs::exists(dir_ / "x.mp4"));
+    EXPECT_NE(err_.find("movie preview skipped"), std::string::npos) << err_;
+    EXPECT_NE(err_.find("encoder exploded"), std::string::npos) << err_;
+}
+
+TEST_F(CliTest, OneFrameAsAListIsNumberedAndMakesNoMovie) {
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "y.png").string() +
+                     " --frames 3 --spp 1 --width 8 --height 6 -q"))
+        << err_;
+    EXPECT_EQ(Head(dir_ / "y.0003.png", 8), kPngMagic);
+    EXPECT_EQ(Head(dir_ / "y.0003.exr", 4), kExrMagic);
+    EXPECT_FALSE(fs::exists(dir_ / "y.png"));
+    EXPECT_FALSE(fs::exists(dir_ / "y.mp4"));
+}
+
+TEST_F(CliTest, MalformedFrameListsAreRefused) {
+    for (const char* frames : {"2-1", "1-3:0", "1,,2", "x", "0-200000"}) {
+        EXPECT_NE(0, Run("render " + kFurnace + " -q -o " + (dir_ / "x.exr").string() +
+                         " --frames " + frames))
+            << frames;
+        EXPECT_NE(err_.find("expected A, A-B, A-B:step or a comma list of them"), std::string::npos)
+            << frames << ": " << err_;
+    }
+    EXPECT_NE(0, Run("render " + kFurnace + " -q -o " + (dir_ / "x.exr").string() +
+                     " --frame 1 --frames 1-2"))
+        << "--frame and --frames exclude each other";
+    EXPECT_FALSE(fs::exists(dir_ / "x.0001.exr"));
+    EXPECT_FALSE(fs::exists(dir_ / "x.0002.exr"));
+}
+
 }  // namespace
 }  // namespace tessera

@@ -1003,5 +1003,38 @@ TEST_F(GrpcAdapterTest, BadRequestsGetStatusesNotCrashes) {
     }
 }
 
+// A job of listed frames: a malformed list is refused with INVALID_ARGUMENT and the
+// reason; a good one renders exactly its frames, each as the local runner would.
+TEST_F(CoordinatorTest, FrameListJobsRenderExactlyTheListedFrames) {
+    v1::JobSpec spec = SceneSpec();
+    spec.set_name("shot");
+    auto refused = [&](const std::vector<int>& frames, const std::string& text) {
+        v1::JobSpec s = spec;
+        for (int f : frames) s.add_frames(f);
+        std::string m;
+        EXPECT_EQ(CodeOf([&] { C().SubmitJob(s); }, &m), ErrorCode::kInvalidArgument) << m;
+        EXPECT_NE(m.find(text), std::string::npos) << m;
+    };
+    refused({4, 1}, "frames are not sorted: frames[1] = 1 follows 4");
+    refused({1, 4, 4}, "frame 4 is listed twice");
+    refused({-1, 4}, "frames[0] = -1 is negative");
+    EXPECT_TRUE(C().ListJobs().empty());
+
+    for (int f : {1, 4}) spec.add_frames(f);
+    const std::string job = C().SubmitJob(spec);
+    std::string w = C().Register("w1", 1).worker_id;
+    RenderAll(w);
+    v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    ASSERT_EQ(st.frames_size(), 2);
+    EXPECT_EQ(st.frames(0).frame(), 1);
+    EXPECT_EQ(st.frames(1).frame(), 4);
+    EXPECT_EQ(st.tasks_total(), 2 * kTasksPerFrame);
+    EXPECT_EQ(st.tasks_done(), 2 * kTasksPerFrame);
+    EXPECT_EQ(CodeOf([&] { C().FrameFile(job, 2, false); }), ErrorCode::kNotFound);
+    ExpectSameAsLocal((dir_ / "out" / job / "shot.0004.exr").string(), 4);
+    ExpectSameAsLocal((dir_ / "out" / job / "shot.0001.exr").string(), 1);
+}
+
 }  // namespace
 }  // namespace tessera

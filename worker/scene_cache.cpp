@@ -48,6 +48,12 @@ struct RendererHandle {
     std::shared_ptr<const FrameRenderer> renderer;
 };
 
+// A frame of an animated scene: its own Scene, and the renderer that refers to it.
+struct AnimatedFrame {
+    std::unique_ptr<Scene> scene;
+    std::unique_ptr<FrameRenderer> renderer;
+};
+
 std::shared_ptr<const FrameRenderer> MakeFrameRenderer(const SceneCache::Job& job, int frame) {
     RenderSettings settings = job.loaded.settings;
     settings.frame = frame;
@@ -58,7 +64,15 @@ std::shared_ptr<const FrameRenderer> MakeFrameRenderer(const SceneCache::Job& jo
     if (((w + ts - 1) / ts) * ((h + ts - 1) / ts) > kMaxTiles)
         throw std::invalid_argument(
             fmt::format("{}x{} pixels in tiles of {} is too many tiles", w, h, ts));
-    return std::make_shared<const FrameRenderer>(*job.loaded.scene, settings);
+    if (!job.loaded.animated)
+        return std::make_shared<const FrameRenderer>(*job.loaded.scene, settings);
+    // Each frame of an animated scene sees its own shutter interval. The renderer keeps
+    // the frame's scene alive as long as any task holds it.
+    auto animated = std::make_shared<AnimatedFrame>();
+    animated->scene = BuildFrameScene(job.loaded, frame);
+    animated->renderer = std::make_unique<FrameRenderer>(*animated->scene, settings);
+    const FrameRenderer* renderer = animated->renderer.get();
+    return std::shared_ptr<const FrameRenderer>(std::move(animated), renderer);
 }
 
 // What the loaded scene depends on: the bundle and the render options (not, say, the

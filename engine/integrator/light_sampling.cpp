@@ -14,7 +14,8 @@ Rgb SampleLight(const Scene& scene, const SurfaceInteraction& si, const Bsdf& bs
     const Vec3 wi_local = si.shading.ToLocal(ls->wi);
     const Rgb f =
         bsdf.Eval(wo_local, wi_local, TransportMode::kRadiance) * AbsDot(ls->wi, si.shading.n);
-    if (f.IsBlack() || scene.Occluded(OffsetRayOrigin(si.p, si.ng, ls->wi), ls->p_light, light))
+    if (f.IsBlack() ||
+        scene.Occluded(OffsetRayOrigin(si.p, si.ng, ls->wi), ls->p_light, light, si.time))
         return {};
     const float light_pdf = pick_pmf * ls->pdf;
     const float w = mis && !light->IsDelta()

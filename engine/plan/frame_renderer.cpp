@@ -10,6 +10,7 @@
 #include "integrator/gather.h"
 #include "photon/photon_tracer.h"
 #include "plan/stage_results.h"
+#include "sampler/time_pattern.h"
 
 namespace tessera {
 namespace {
@@ -23,6 +24,21 @@ void SetFloatingPointMode() {
 
 // Names the photon stage's streams apart from the pixel streams of the same seed.
 constexpr uint64_t kPhotonStreamSalt = 0x70686f746f6e73ull;
+
+// The space-time pattern the settings ask for; null for independent times.
+const TimePattern* TimePatternOf(const RenderSettings& s) {
+    if (s.time_sampler != TimeSampler::kStratified) return nullptr;
+    return &TimePattern::ForGrid(TimePattern::GridFor(s.sampler, s.spp));
+}
+
+// A camera sample's time: from the pattern when there is one, else the sampler's next 1D
+// value. Both draw exactly one sampler dimension, so whatever does not read the time
+// renders alike either way.
+float SampleTime(const TimePattern* pattern, Sampler& sampler, Vec2 u_pixel, uint64_t frame_key,
+                 Vec2i pixel) {
+    const float u = sampler.Get1D();
+    return pattern ? pattern->Sample(u_pixel, u, TimePattern::PixelShift(frame_key, pixel)) : u;
+}
 
 }  // namespace
 
@@ -165,14 +181,16 @@ std::string FrameRenderer::RunIrradianceTask(int stage, int task_index,
     // to fine across tile borders too; each at its centre, on its first sample.
     const int y0 = (tile.lo.y + stride - 1) / stride * stride;
     const int x0 = (tile.lo.x + stride - 1) / stride * stride;
+    const TimePattern* time_pattern = TimePatternOf(settings_);
+    const uint64_t frame_key = Hash(settings_.seed, settings_.frame);
     for (int y = y0; y < tile.hi.y; y += stride) {
         for (int x = x0; x < tile.hi.x; x += stride) {
             sampler->StartPixelSample(Vec2i(x, y), 0);
             CameraSample cs;
-            sampler->GetPixel2D();
+            const Vec2 u = sampler->GetPixel2D();
             cs.p_film = Vec2(x + 0.5f, y + 0.5f);
             cs.p_lens = sampler->Get2D();
-            cs.time = sampler->Get1D();
+            cs.time = SampleTime(time_pattern, *sampler, u, frame_key, Vec2i(x, y));
             integrator->PrepareIrradiance(camera.GenerateRay(cs), *sampler, arena, state.get());
             arena.Reset();
         }
@@ -191,6 +209,8 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     TileFilm film(tile, resolution_, *filter_, settings_.filter.sampling);
     std::unique_ptr<Sampler> sampler = sampler_->Clone();
     const Camera& camera = scene_.GetCamera();
+    const TimePattern* time_pattern = TimePatternOf(settings_);
+    const uint64_t frame_key = Hash(settings_.seed, settings_.frame);
     for (int y = tile.lo.y; y < tile.hi.y; ++y) {
         for (int x = tile.lo.x; x < tile.hi.x; ++x) {
             for (int i = 0; i < settings_.spp; ++i) {
@@ -207,7 +227,7 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
                     cs.p_film = Vec2(x + u.x, y + u.y);
                 }
                 cs.p_lens = sampler->Get2D();
-                cs.time = sampler->Get1D();
+                cs.time = SampleTime(time_pattern, *sampler, u, frame_key, Vec2i(x, y));
                 Ray ray = camera.GenerateRay(cs);
                 SampleValue v = integrator->Li(ray, *sampler, arena, state.get());
                 arena.Reset();

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "core/math.h"
 #include "film/film.h"
@@ -65,6 +66,22 @@ inline std::optional<DebugView> ParseDebugView(const std::string& name) {
     return std::nullopt;
 }
 
+// How a pixel's samples spread over the shutter (sampler/time_pattern.h): independently
+// (the sampler's next 1D value), or stratified in a space-time pattern in which each of a
+// pixel's samples takes its own time stratum and neighbouring sub-pixel cells take distant
+// ones. "independent", "stratified": the names the scene format and the command line use.
+enum class TimeSampler { kIndependent, kStratified };
+
+inline const char* TimeSamplerName(TimeSampler sampler) {
+    return sampler == TimeSampler::kIndependent ? "independent" : "stratified";
+}
+
+inline std::optional<TimeSampler> ParseTimeSampler(std::string_view name) {
+    for (TimeSampler t : {TimeSampler::kIndependent, TimeSampler::kStratified})
+        if (name == TimeSamplerName(t)) return t;
+    return std::nullopt;
+}
+
 struct RenderSettings {
     std::string integrator = "path";  // path | direct | photon | irradiance-cache
     int spp = 16;
@@ -74,6 +91,8 @@ struct RenderSettings {
     // rendered the example scenes with the least error per second (bench/run_pt.sh).
     float rr_threshold = 0.25f;
     SamplerType sampler = SamplerType::kSobol;
+    // Matters only where something moves: both draw the same sampler dimensions.
+    TimeSampler time_sampler = TimeSampler::kStratified;
     uint64_t seed = 0;
     int tile_size = 32;
     FilterSettings filter;
@@ -90,6 +109,7 @@ struct RenderOverrides {
     std::optional<int> spp, max_depth, tile_size, frame, width, height;
     std::optional<uint64_t> seed;
     std::optional<SamplerType> sampler;
+    std::optional<TimeSampler> time_sampler;
     std::optional<FilterType> filter;  // a new type starts from that type's defaults
     std::optional<FilterSampling> filter_sampling;
     std::optional<bool> irradiance_cache;

@@ -37,6 +37,7 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("rr_depth", s.rr_depth);
     put("rr_threshold", s.rr_threshold);
     put("sampler", SamplerTypeName(s.sampler));
+    put("time_sampler", TimeSamplerName(s.time_sampler));
     put("seed", s.seed);
     put("tile_size", s.tile_size);
     put("filter.type", static_cast<int>(s.filter.type));
@@ -91,6 +92,11 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
         std::optional<SamplerType> type = ParseSamplerType(v);
         if (!type) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
         s.sampler = *type;
+    };
+    set["time_sampler"] = [&](const std::string& k, const std::string& v) {
+        std::optional<TimeSampler> t = ParseTimeSampler(v);
+        if (!t) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
+        s.time_sampler = *t;
     };
     set["seed"] = [&](const std::string& k, const std::string& v) {
         s.seed = Parse<uint64_t>(k, v);

@@ -14,24 +14,49 @@ void OnEmbreeError(void* /*user*/, RTCError code, const char* message) {
     spdlog::error("Embree error {}: {}", static_cast<int>(code), message ? message : "");
 }
 
-void FillTriangles(RTCDevice device, RTCGeometry geom, const TriangleMesh& mesh) {
-    auto* vertices = static_cast<float*>(
-        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                3 * sizeof(float), mesh.positions.size()));
+// The vertices of `steps[k]` into time slot k, the indices of steps[0].
+void FillTriangleSteps(RTCDevice device, RTCGeometry geom,
+                       const std::vector<const TriangleMesh*>& steps) {
+    const TriangleMesh& mesh = *steps.front();
+    if (steps.size() > 1) rtcSetGeometryTimeStepCount(geom, static_cast<unsigned>(steps.size()));
+    for (size_t k = 0; k < steps.size(); ++k) {
+        if (steps[k]->positions.size() != mesh.positions.size())
+            throw std::invalid_argument("the time steps of a moving mesh differ in vertex count");
+        auto* vertices = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, static_cast<unsigned>(k),
+                                    RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.positions.size()));
+        if (!vertices)
+            throw std::runtime_error("Embree could not allocate a mesh buffer (error " +
+                                     std::to_string(rtcGetDeviceError(device)) + ")");
+        const std::vector<Vec3>& positions = steps[k]->positions;
+        for (size_t i = 0; i < positions.size(); ++i) {
+            vertices[3 * i + 0] = positions[i].x;
+            vertices[3 * i + 1] = positions[i].y;
+            vertices[3 * i + 2] = positions[i].z;
+        }
+    }
     auto* indices = static_cast<unsigned*>(
         rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                 3 * sizeof(unsigned), mesh.NumTriangles()));
-    if (!vertices || !indices) {
+    if (!indices) {
         throw std::runtime_error("Embree could not allocate a mesh buffer (error " +
                                  std::to_string(rtcGetDeviceError(device)) + ")");
     }
-    for (size_t i = 0; i < mesh.positions.size(); ++i) {
-        vertices[3 * i + 0] = mesh.positions[i].x;
-        vertices[3 * i + 1] = mesh.positions[i].y;
-        vertices[3 * i + 2] = mesh.positions[i].z;
-    }
     std::memcpy(indices, mesh.indices.data(), mesh.indices.size() * sizeof(unsigned));
     rtcCommitGeometry(geom);
+}
+
+void FillTriangles(RTCDevice device, RTCGeometry geom, const TriangleMesh& mesh) {
+    FillTriangleSteps(device, geom, {&mesh});
+}
+
+// Embree wants a 3x4 row-major affine matrix.
+void SetTransform(RTCGeometry geom, unsigned step, const Transform& object_to_world) {
+    float m[12];
+    const auto& a = object_to_world.Matrix().m;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) m[r * 4 + c] = a[r][c];
+    rtcSetGeometryTransform(geom, step, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m);
 }
 
 // An intersection context that rejects every hit on one root geometry. The context
@@ -110,14 +135,39 @@ unsigned EmbreeScene::AddTriangles(const TriangleMesh& mesh) {
 }
 
 unsigned EmbreeScene::AddSphere(const Vec3& center, float radius) {
+    return AddMovingSphere({center}, radius);
+}
+
+unsigned EmbreeScene::AddMovingTriangles(const std::vector<const TriangleMesh*>& steps) {
+    RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    try {
+        FillTriangleSteps(h_->device, geom, steps);
+    } catch (...) {
+        rtcReleaseGeometry(geom);
+        throw;
+    }
+    unsigned id = rtcAttachGeometry(h_->root, geom);
+    rtcReleaseGeometry(geom);
+    return id;
+}
+
+unsigned EmbreeScene::AddMovingSphere(const std::vector<Vec3>& centers, float radius) {
     RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                          RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
-    if (!v) throw std::runtime_error("Embree could not allocate a sphere buffer");
-    v[0] = center.x;
-    v[1] = center.y;
-    v[2] = center.z;
-    v[3] = radius;
+    if (centers.size() > 1)
+        rtcSetGeometryTimeStepCount(geom, static_cast<unsigned>(centers.size()));
+    for (size_t k = 0; k < centers.size(); ++k) {
+        auto* v = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, static_cast<unsigned>(k),
+                                    RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+        if (!v) {
+            rtcReleaseGeometry(geom);
+            throw std::runtime_error("Embree could not allocate a sphere buffer");
+        }
+        v[0] = centers[k].x;
+        v[1] = centers[k].y;
+        v[2] = centers[k].z;
+        v[3] = radius;
+    }
     rtcCommitGeometry(geom);
     unsigned id = rtcAttachGeometry(h_->root, geom);
     rtcReleaseGeometry(geom);
@@ -141,14 +191,15 @@ unsigned EmbreeScene::AddTrianglesToPrototype(int prototype, const TriangleMesh&
 }
 
 unsigned EmbreeScene::AddInstance(int prototype, const Transform& object_to_world) {
+    return AddMovingInstance(prototype, {object_to_world});
+}
+
+unsigned EmbreeScene::AddMovingInstance(int prototype, const std::vector<Transform>& steps) {
     RTCGeometry geom = rtcNewGeometry(h_->device, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(geom, h_->prototypes.at(prototype));
-    // Embree wants a 3x4 row-major affine matrix.
-    float m[12];
-    const auto& a = object_to_world.Matrix().m;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) m[r * 4 + c] = a[r][c];
-    rtcSetGeometryTransform(geom, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m);
+    if (steps.size() > 1) rtcSetGeometryTimeStepCount(geom, static_cast<unsigned>(steps.size()));
+    for (size_t k = 0; k < steps.size(); ++k)
+        SetTransform(geom, static_cast<unsigned>(k), steps[k]);
     rtcCommitGeometry(geom);
     unsigned id = rtcAttachGeometry(h_->root, geom);
     rtcReleaseGeometry(geom);

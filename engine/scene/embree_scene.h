@@ -37,6 +37,13 @@ class EmbreeScene {
     // Returns the geometry id inside the prototype's scene.
     unsigned AddTrianglesToPrototype(int prototype, const TriangleMesh& mesh);
     unsigned AddInstance(int prototype, const Transform& object_to_world);
+    // Motion blur: geometry at evenly spaced times across the shutter, step k at time
+    // k / (steps - 1) of the ray-time range [0, 1]; Embree interpolates linearly between
+    // neighbouring steps (vertices, sphere centres, instance matrices). Every step has
+    // the same topology as `steps[0]`.
+    unsigned AddMovingTriangles(const std::vector<const TriangleMesh*>& steps);
+    unsigned AddMovingSphere(const std::vector<Vec3>& centers, float radius);
+    unsigned AddMovingInstance(int prototype, const std::vector<Transform>& steps);
     // Makes OccludedIgnoring possible. The root scene then calls context filters, which
     // only scenes that need them should pay for.
     void EnableIgnoring();

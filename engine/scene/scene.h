@@ -45,6 +45,15 @@ class Scene {
     int AddPrototype();
     void AddMeshToPrototype(int prototype, TriangleMesh mesh, const Material* material);
     void AddInstance(int prototype, const Transform& object_to_world);
+    // Motion blur. Each takes the shape at evenly spaced times across the shutter: step k
+    // at ray time k / (steps - 1) (ray times run from 0 at shutter open to 1 at close);
+    // between steps, positions (vertices, sphere centres, instance matrices) interpolate
+    // linearly, in Embree and in shading alike. One step is a shape that does not move.
+    // Moving shapes cannot emit. Mesh steps must share their topology (indices, uvs);
+    // their positions and normals differ.
+    void AddMovingMesh(std::vector<TriangleMesh> steps, const Material* material);
+    void AddMovingSphere(std::vector<Vec3> centers, float radius, const Material* material);
+    void AddMovingInstance(int prototype, std::vector<Transform> steps);
     void AddLight(std::unique_ptr<Light> light);
     void SetCamera(std::unique_ptr<Camera> camera);
     // Builds the BVH, the light list and the light sampler.
@@ -55,8 +64,9 @@ class Scene {
     bool Intersect(const Ray& ray, SurfaceInteraction* si, float t_max = kInfinity) const;
     // Distance to the closest hit, without shading: Embree's own cost, for benchmarks.
     bool IntersectRaw(const Ray& ray, float* t) const;
-    // Whether anything blocks the segment from p0 to p1 (both ends excluded).
-    bool Occluded(const Vec3& p0, const Vec3& p1) const;
+    // Whether anything blocks the segment from p0 to p1 (both ends excluded), at ray time
+    // `time` (where moving shapes are then).
+    bool Occluded(const Vec3& p0, const Vec3& p1, float time = 0) const;
     // For a shadow ray toward p1, a point that light->SampleLi chose: whether anything
     // blocks the segment, not counting the light's own shape when that shape is convex
     // (a sphere). SampleLi only returns points on the part of a sphere that the receiver
@@ -66,7 +76,7 @@ class Scene {
     // shrinks. A shadow ray from inside the sphere, or from within float error of its
     // surface (where SampleLi samples the whole sphere by area), does test the sphere.
     // Any other light, or none, is tested like Occluded(p0, p1).
-    bool Occluded(const Vec3& p0, const Vec3& p1, const Light* light) const;
+    bool Occluded(const Vec3& p0, const Vec3& p1, const Light* light, float time = 0) const;
     // Whether anything blocks the ray within (0, t_max).
     bool OccludedRay(const Ray& ray, float t_max) const;
 
@@ -77,6 +87,8 @@ class Scene {
     const LightSampler& GetLightSampler() const { return *light_sampler_; }
     const Bounds3& Bounds() const { return bounds_; }
     size_t NumTriangles() const;
+    // Whether any shape moves during the shutter.
+    bool HasMotion() const { return has_motion_; }
     // Rays this thread has traced through any Scene (for statistics).
     static uint64_t ThreadRayCount();
 
@@ -104,6 +116,7 @@ class Scene {
     std::unique_ptr<LightSampler> light_sampler_;
     std::unique_ptr<Camera> camera_;
     Bounds3 bounds_;
+    bool has_motion_ = false;
 };
 
 }  // namespace tessera

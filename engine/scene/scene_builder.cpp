@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "camera/perspective.h"
+#include "core/animation.h"
 #include "core/error.h"
 #include "io/file_bytes.h"
 #include "io/image_io.h"
@@ -77,15 +78,96 @@ std::string ReadReferencedFile(const std::string& resolved, const SceneRecords& 
 // Loads each mesh file once, however many shapes use it.
 void LoadMeshFiles(const std::vector<ShapeRecord>& shapes, const SceneRecords& records,
                    std::map<std::string, TriangleMesh>* files) {
-    for (const ShapeRecord& s : shapes) {
-        if (s.kind != ShapeKind::kMesh || files->count(s.path)) continue;
+    auto load = [&](const std::string& path, const std::string& where) {
+        if (files->count(path)) return;
         try {
-            (*files)[s.path] =
-                ParseMeshData(ShownName(s.path, records), ReadReferencedFile(s.path, records));
+            (*files)[path] =
+                ParseMeshData(ShownName(path, records), ReadReferencedFile(path, records));
         } catch (const std::exception& e) {
-            throw SceneError(s.path_where, ReaderMessage(e, records.sandbox_root));
+            throw SceneError(where, ReaderMessage(e, records.sandbox_root));
+        }
+    };
+    for (const ShapeRecord& s : shapes) {
+        if (s.kind != ShapeKind::kMesh) continue;
+        load(s.path, s.path_where);
+        for (const DeformKey& k : s.deform) load(k.path, k.where);
+    }
+}
+
+// A deforming mesh's keys as meshes in the shape's frame (its static transform applied),
+// each checked against the first: the same vertices, triangles and attributes.
+std::vector<TriangleMesh> DeformKeyMeshes(const ShapeRecord& s,
+                                          const std::map<std::string, TriangleMesh>& files,
+                                          const SceneRecords& records) {
+    std::vector<TriangleMesh> keys;
+    for (const DeformKey& k : s.deform) {
+        TriangleMesh m = files.at(k.path);
+        if (!s.transform.IsIdentity()) m.Transform(s.transform);
+        if (!keys.empty()) {
+            const TriangleMesh& first = keys.front();
+            if (m.positions.size() != first.positions.size() || m.indices != first.indices ||
+                m.normals.size() != first.normals.size())
+                throw SceneError(
+                    k.where,
+                    "mesh '" + ShownName(k.path, records) + "' has " +
+                        std::to_string(m.positions.size()) + " vertices and " +
+                        std::to_string(m.NumTriangles()) + " triangles" +
+                        (m.normals.size() != first.normals.size()
+                             ? std::string(m.normals.empty() ? " without" : " with") + " normals"
+                             : std::string()) +
+                        ", but the first key's mesh '" + ShownName(s.deform.front().path, records) +
+                        "' has " + std::to_string(first.positions.size()) + " vertices and " +
+                        std::to_string(first.NumTriangles()) +
+                        " triangles: a deforming mesh keeps its topology (the same "
+                        "vertices, in the same order, and the same triangles)");
+        }
+        keys.push_back(std::move(m));
+    }
+    return keys;
+}
+
+// How a deforming mesh's key positions weigh in at `time`: weights[j] for key j, from
+// the same tracks (and so the same interpolation) as every other keyed value. A track is
+// linear in its key values, so a vertex's place is the weighted sum of its key places.
+class DeformWeights {
+  public:
+    DeformWeights(const std::vector<DeformKey>& keys, Interpolation interp) {
+        for (size_t j = 0; j < keys.size(); ++j) {
+            std::vector<Track<float>::Key> unit;
+            for (size_t i = 0; i < keys.size(); ++i) {
+                Track<float>::Key k;
+                k.time = keys[i].time;
+                k.value = i == j ? 1.0f : 0.0f;
+                unit.push_back(k);
+            }
+            tracks_.emplace_back(std::move(unit), interp);
         }
     }
+    std::vector<float> At(double time) const {
+        std::vector<float> w;
+        for (const Track<float>& t : tracks_) w.push_back(t.Evaluate(time));
+        return w;
+    }
+
+  private:
+    std::vector<Track<float>> tracks_;
+};
+
+// The mesh whose vertices are the weighted sums of the keys' (normals renormalised).
+TriangleMesh Blend(const std::vector<TriangleMesh>& keys, const std::vector<float>& w) {
+    TriangleMesh m = keys.front();
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+        Vec3 p(0, 0, 0), n(0, 0, 0);
+        for (size_t j = 0; j < keys.size(); ++j) {
+            if (w[j] == 0) continue;
+            p += keys[j].positions[v] * w[j];
+            if (!m.normals.empty()) n += keys[j].normals[v] * w[j];
+        }
+        m.positions[v] = p;
+        if (!m.normals.empty())
+            m.normals[v] = LengthSquared(n) > 0 ? Normalize(n) : keys[0].normals[v];
+    }
+    return m;
 }
 
 // World-space (or, for objects, object-space) meshes of the non-sphere shapes, in order.
@@ -229,16 +311,89 @@ std::unique_ptr<Light> MakeLight(const LightRecord& l) {
     throw std::logic_error("unknown light kind");
 }
 
-std::unique_ptr<Camera> MakeCamera(const CameraRecord& c, Vec2i resolution) {
+std::unique_ptr<Camera> MakeCamera(const CameraRecord& c, Vec2i resolution, double time_open,
+                                   double time_close) {
     PerspectiveSettings p;
     p.camera_to_world = c.camera_to_world;
     p.resolution = resolution;
     p.fov_deg = c.fov_deg;
     p.lens_radius = c.lens_radius;
     p.focus_distance = c.focus_distance;
-    p.shutter_open = c.shutter_open;
-    p.shutter_close = c.shutter_close;
+    p.track = c.track;
+    p.time_open = time_open;
+    p.time_close = time_close;
     return MakePerspectiveCamera(p);
+}
+
+// How far (world units) a moving point may stray from its keyed path because Embree
+// interpolates linearly between time steps: this fraction of the shape's size (the
+// diagonal of its bounds). Steps are added until every corner, face centre and edge
+// midpoint of the bounds stays within it (AnimatedTransform::MotionSteps).
+constexpr float kMotionTolerance = 1e-3f;
+constexpr int kMaxMotionSteps = 64;
+
+Bounds3 MeshBounds(const TriangleMesh& mesh) {
+    Bounds3 b;
+    for (const Vec3& p : mesh.positions) b.Extend(p);
+    return b;
+}
+
+// The times of `count` evenly spaced steps over [t0, t1].
+std::vector<double> StepTimes(double t0, double t1, int count) {
+    std::vector<double> times;
+    for (int k = 0; k < count; ++k)
+        times.push_back(count == 1 ? t0 : t0 + (t1 - t0) * k / (count - 1));
+    return times;
+}
+
+// Time steps for a deforming mesh over [t0, t1]: the fewest (up to kMaxMotionSteps) whose
+// linear interpolation keeps every vertex within kMotionTolerance of the mesh's size of its
+// keyed place, checked at 8 times between steps. A shutter within one linear segment of the
+// keys needs two.
+int DeformStepCount(const std::vector<TriangleMesh>& keys, const DeformWeights& weights, double t0,
+                    double t1) {
+    if (!(t1 > t0)) return 1;
+    Bounds3 bounds;
+    for (const TriangleMesh& k : keys)
+        for (const Vec3& p : k.positions) bounds.Extend(p);
+    const float tolerance = kMotionTolerance * std::max(Distance(bounds.lo, bounds.hi), 1e-6f);
+    const std::vector<float> w0 = weights.At(t0), w1 = weights.At(t1);
+    if (w0 == w1) {
+        bool still = true;
+        for (double u = 0.125; u < 1 && still; u += 0.125)
+            still = weights.At(t0 + (t1 - t0) * u) == w0;
+        if (still) return 1;
+    }
+    auto place = [&](const std::vector<float>& w, size_t v) {
+        Vec3 p(0, 0, 0);
+        for (size_t j = 0; j < keys.size(); ++j) p += keys[j].positions[v] * w[j];
+        return p;
+    };
+    for (int count = 2; count < kMaxMotionSteps; ++count) {
+        bool ok = true;
+        for (int k = 0; k + 1 < count && ok; ++k) {
+            const double ta = t0 + (t1 - t0) * k / (count - 1);
+            const double tb = t0 + (t1 - t0) * (k + 1) / (count - 1);
+            const std::vector<float> wa = weights.At(ta), wb = weights.At(tb);
+            for (int sub = 1; sub < 8 && ok; ++sub) {
+                const float f = sub / 8.0f;
+                const std::vector<float> w = weights.At(ta + (tb - ta) * f);
+                for (size_t v = 0; v < keys[0].positions.size() && ok; ++v) {
+                    const Vec3 stepped = place(wa, v) * (1 - f) + place(wb, v) * f;
+                    ok = Distance(stepped, place(w, v)) <= tolerance;
+                }
+            }
+        }
+        if (ok) return count;
+    }
+    return kMaxMotionSteps;
+}
+
+int StepCount(const AnimatedTransform& animation, double t0, double t1, const Bounds3& bounds) {
+    if (bounds.Empty() || !(t1 > t0)) return 1;
+    const float size = std::max(Distance(bounds.lo, bounds.hi), 1e-6f);
+    return std::max(
+        1, animation.MotionSteps(t0, t1, bounds, kMotionTolerance * size, kMaxMotionSteps));
 }
 
 }  // namespace
@@ -268,6 +423,7 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     ranged(o.height, 1, 65536, "height", &s.resolution.y);
     if (o.seed) s.seed = *o.seed;
     if (o.sampler) s.sampler = *o.sampler;
+    if (o.time_sampler) s.time_sampler = *o.time_sampler;
     if (o.filter && *o.filter != s.filter.type) {
         // The scene's radius and shape parameters were chosen for its own filter type.
         FilterSettings f;
@@ -301,6 +457,11 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
     std::vector<std::vector<TriangleMesh>> object_meshes;
     for (const ObjectRecord& o : records.objects)
         object_meshes.push_back(MakeMeshes(o.shapes, files));
+    // A deforming mesh's keys, checked to share their topology.
+    std::vector<std::vector<TriangleMesh>> deform_keys(records.shapes.size());
+    for (size_t i = 0; i < records.shapes.size(); ++i)
+        if (!records.shapes[i].deform.empty())
+            deform_keys[i] = DeformKeyMeshes(records.shapes[i], files, records);
     files.clear();
 
     std::vector<TextureRef> textures = MakeTextures(records);
@@ -316,30 +477,89 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
     for (auto& m : materials) material_of.push_back(scene.AddMaterial(std::move(m)));
     auto material = [&](int index) { return index < 0 ? nullptr : material_of[index]; };
 
-    size_t next_mesh = 0;
+    // The frame's shutter interval in scene time (seconds).
+    const double fps = records.animation.fps;
+    const double t0 = (settings.frame + double(records.camera.shutter_open)) / fps;
+    const double t1 = (settings.frame + double(records.camera.shutter_close)) / fps;
+
+    size_t next_mesh = 0, shape_index = 0;
     for (const ShapeRecord& s : records.shapes) {
+        const std::vector<TriangleMesh>& keys = deform_keys[shape_index++];
         Emission emission;
         if (s.emission) emission = {s.emission->radiance, s.emission->two_sided};
         const Emission* e = s.emission ? &emission : nullptr;
         if (s.kind == ShapeKind::kSphere) {
-            scene.AddSphere(s.center, s.radius, material(s.material), e);
+            if (!s.animation) {
+                scene.AddSphere(s.center, s.radius, material(s.material), e);
+                continue;
+            }
+            Bounds3 b;
+            b.Extend(s.center - Vec3(s.radius, s.radius, s.radius));
+            b.Extend(s.center + Vec3(s.radius, s.radius, s.radius));
+            std::vector<Vec3> centers;
+            for (double t : StepTimes(t0, t1, StepCount(*s.animation, t0, t1, b)))
+                centers.push_back(s.animation->Evaluate(t).Point(s.center));
+            scene.AddMovingSphere(std::move(centers), s.radius, material(s.material));
         } else {
-            scene.AddMesh(std::move(meshes[next_mesh++]), material(s.material), e);
+            TriangleMesh mesh = std::move(meshes[next_mesh++]);
+            if (!s.deform.empty()) {
+                // Keys in the shape's frame; the pose (if any) moves them as a whole.
+                const DeformWeights weights(s.deform, s.deform_interpolation);
+                int count = DeformStepCount(keys, weights, t0, t1);
+                if (s.animation)
+                    count = std::max(count, StepCount(*s.animation, t0, t1, MeshBounds(mesh)));
+                std::vector<TriangleMesh> steps;
+                for (double t : StepTimes(t0, t1, count)) {
+                    steps.push_back(Blend(keys, weights.At(t)));
+                    if (s.animation) steps.back().Transform(s.animation->Evaluate(t));
+                }
+                scene.AddMovingMesh(std::move(steps), material(s.material));
+                continue;
+            }
+            if (!s.animation) {
+                scene.AddMesh(std::move(mesh), material(s.material), e);
+                continue;
+            }
+            std::vector<TriangleMesh> steps;
+            for (double t : StepTimes(t0, t1, StepCount(*s.animation, t0, t1, MeshBounds(mesh)))) {
+                steps.push_back(mesh);
+                steps.back().Transform(s.animation->Evaluate(t));
+            }
+            scene.AddMovingMesh(std::move(steps), material(s.material));
         }
     }
     std::vector<int> prototype_of;
+    std::vector<Bounds3> object_bounds(records.objects.size());
     for (size_t i = 0; i < records.objects.size(); ++i) {
         int proto = scene.AddPrototype();
         prototype_of.push_back(proto);
         const std::vector<ShapeRecord>& shapes = records.objects[i].shapes;
-        for (size_t k = 0; k < shapes.size(); ++k)
+        for (size_t k = 0; k < shapes.size(); ++k) {
+            object_bounds[i].Extend(MeshBounds(object_meshes[i][k]));
             scene.AddMeshToPrototype(proto, std::move(object_meshes[i][k]),
                                      material(shapes[k].material));
+        }
     }
-    for (const InstanceRecord& inst : records.instances)
-        scene.AddInstance(prototype_of[inst.object], inst.transform);
+    for (const InstanceRecord& inst : records.instances) {
+        if (!inst.animation) {
+            scene.AddInstance(prototype_of[inst.object], inst.transform);
+            continue;
+        }
+        // The animation moves the instance as placed by its own transform.
+        Bounds3 placed;
+        const Bounds3& b = object_bounds[inst.object];
+        if (!b.Empty())
+            for (int corner = 0; corner < 8; ++corner)
+                placed.Extend(inst.transform.Point(Vec3((corner & 1) ? b.hi.x : b.lo.x,
+                                                        (corner & 2) ? b.hi.y : b.lo.y,
+                                                        (corner & 4) ? b.hi.z : b.lo.z)));
+        std::vector<Transform> steps;
+        for (double t : StepTimes(t0, t1, StepCount(*inst.animation, t0, t1, placed)))
+            steps.push_back(inst.animation->Evaluate(t) * inst.transform);
+        scene.AddMovingInstance(prototype_of[inst.object], std::move(steps));
+    }
     for (const LightRecord& l : records.lights) scene.AddLight(MakeLight(l));
-    scene.SetCamera(MakeCamera(records.camera, settings.resolution));
+    scene.SetCamera(MakeCamera(records.camera, settings.resolution, t0, t1));
     scene.Commit();
     return out;
 }

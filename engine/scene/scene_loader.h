@@ -16,9 +16,18 @@
 
 namespace tessera {
 
+struct SceneRecords;
+
 struct LoadedScene {
-    std::unique_ptr<Scene> scene;
+    std::unique_ptr<Scene> scene;  // as frame settings.frame sees it
     RenderSettings settings;
+    // The scene's frame rate and default frame range (its "animation" section).
+    double fps = 24;
+    int frame_start = 0, frame_end = 0;
+    // Whether anything is keyed (shapes, instances, the camera): then every frame sees
+    // its own scene, which BuildFrameScene makes from the parsed file kept here.
+    bool animated = false;
+    std::shared_ptr<const SceneRecords> records;
 };
 
 // How files are read. Every file (the scene, meshes, images) is read whole, under the
@@ -47,6 +56,12 @@ struct SceneLoadOptions {
 // scene file's folder.
 LoadedScene LoadSceneFile(const std::string& path, const RenderOverrides& overrides = {},
                           const SceneLoadOptions& options = {});
+
+// The scene as frame `frame` sees it, over that frame's shutter interval (`loaded.scene`
+// itself is for loaded.settings.frame). Only for animated scenes: a scene where nothing
+// is keyed looks the same in every frame, and its loaded.scene serves them all. Throws
+// SceneError like LoadSceneFile.
+std::unique_ptr<Scene> BuildFrameScene(const LoadedScene& loaded, int frame);
 
 // The files a scene references (meshes, image textures), as written in the scene,
 // relative to the scene file's folder; each listed once, in order of appearance.

@@ -153,6 +153,7 @@ struct Context {
     fs::path sandbox_root, scene_dir_in_bundle;
     uint64_t max_file_bytes = 0;
     std::map<std::string, int> textures, materials, objects;
+    double fps = 24;  // the "animation" section's, for keys given by frame
     // Files referenced so far, as (section, as written, resolved).
     struct FileRef {
         std::string section, written, resolved;
@@ -268,6 +269,10 @@ RenderSettings ParseRender(const JsonValue& v) {
         const std::vector<std::string>& names = SamplerTypeNames();
         r.sampler = *ParseSamplerType(names[ParseEnum(*s, names, "sampler")]);
     }
+    if (auto t = o.Get("time_sampler")) {
+        const int i = ParseEnum(*t, {"independent", "stratified"}, "time sampler");
+        r.time_sampler = i == 0 ? TimeSampler::kIndependent : TimeSampler::kStratified;
+    }
     if (auto s = o.Get("seed")) r.seed = s->AsUint64();
     if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
     if (auto f = o.Get("frame")) r.frame = int(f->AsInt(0, 1 << 30));
@@ -354,9 +359,154 @@ Transform ParseTransform(const JsonValue& v) {
 }
 
 // ---------------------------------------------------------------------------------------
+// animation
+
+// The "animation" section: {"fps": 24, "frames": [first, last]} (or "frames": "A-B").
+AnimationSettings ParseAnimationSettings(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    AnimationSettings a;
+    if (auto f = o.Get("fps")) {
+        a.fps = f->AsDouble();
+        if (!(a.fps > 0) || !std::isfinite(a.fps) || a.fps > 100000)
+            f->Fail("fps must be positive and at most 100000, got " + Number(a.fps));
+    }
+    if (auto f = o.Get("frames")) {
+        if (f->IsString()) {
+            const std::string text = f->AsString();
+            int first = 0, last = 0;
+            char extra = 0;
+            const int n = std::sscanf(text.c_str(), "%d-%d%c", &first, &last, &extra);
+            if (n == 1)
+                last = first;
+            else if (n != 2)
+                f->Fail("expected \"A-B\" or [A, B], got \"" + text + "\"");
+            a.frame_start = first;
+            a.frame_end = last;
+        } else {
+            if (!f->IsArray() || f->Size() != 2)
+                f->Fail("expected [first, last] or \"A-B\", got " + f->KindName());
+            std::vector<JsonValue> ends = f->Elements();
+            a.frame_start = int(ends[0].AsInt(0, 1 << 30));
+            a.frame_end = int(ends[1].AsInt(0, 1 << 30));
+        }
+        if (a.frame_start < 0 || a.frame_end < a.frame_start)
+            f->Fail("frames must run from a first frame >= 0 to a last frame >= the first");
+    }
+    o.Finish("the animation section");
+    return a;
+}
+
+// A key's time in seconds: "time" (seconds) or "frame" (a frame number, fractions
+// allowed), not both.
+double ParseKeyTime(JsonObject& k, const JsonValue& key, double fps) {
+    auto t = k.Get("time"), f = k.Get("frame");
+    if (t && f) f->Fail("give either time (seconds) or frame, not both");
+    if (!t && !f) key.Fail("a key needs a time (seconds) or a frame");
+    const JsonValue& v = t ? *t : *f;
+    const double value = v.AsDouble();
+    if (!std::isfinite(value)) v.Fail("must be finite");
+    return t ? value : value / fps;
+}
+
+Interpolation ParseInterpolationKey(JsonObject& o) {
+    auto i = o.Get("interpolation");
+    if (!i) return Interpolation::kLinear;
+    const std::vector<std::string> names = {"linear", "catmull-rom", "bezier"};
+    return *ParseInterpolation(names[ParseEnum(*i, names, "interpolation")]);
+}
+
+// The keys' times must increase; names the first key that does not.
+void CheckKeyOrder(const std::vector<double>& times, const std::vector<JsonValue>& keys) {
+    for (size_t i = 1; i < times.size(); ++i)
+        if (!(times[i] > times[i - 1]))
+            keys[i].Fail("keys out of order: this key's time (" + Number(times[i]) +
+                         " s) is not after the previous key's (" + Number(times[i - 1]) + " s)");
+}
+
+// {"interpolation": ..., "keys": [{"time" | "frame", "translate", "rotate": {"axis",
+// "angle"}, "scale"}, ...]}: each key a whole pose (absent parts: identity).
+AnimatedTransform ParseAnimation(const JsonValue& v, double fps) {
+    JsonObject o = v.AsObject();
+    const Interpolation interp = ParseInterpolationKey(o);
+    JsonValue keys_v = o.Required("keys");
+    o.Finish("an animation");
+    if (!keys_v.IsArray() || keys_v.Size() == 0)
+        keys_v.Fail("expected a non-empty array of keys, got " +
+                    (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
+    std::vector<JsonValue> elements = keys_v.Elements();
+    std::vector<TransformKey> keys;
+    std::vector<double> times;
+    for (const JsonValue& kv : elements) {
+        JsonObject k = kv.AsObject();
+        TransformKey key;
+        key.time = ParseKeyTime(k, kv, fps);
+        if (auto t = k.Get("translate")) key.translate = t->AsVec3();
+        if (auto r = k.Get("rotate")) {
+            JsonObject ro = r->AsObject();
+            Vec3 axis = NonZeroVec3(ro.Required("axis"));
+            float angle = ro.Required("angle").AsFloat();
+            ro.Finish("rotate");
+            key.rotate = QuaternionFromAxisAngle(axis, angle);
+        }
+        if (auto sc = k.Get("scale")) {
+            key.scale =
+                sc->IsNumber() ? Vec3(sc->AsFloat(), sc->AsFloat(), sc->AsFloat()) : sc->AsVec3();
+            if (!(key.scale.x > 0 && key.scale.y > 0 && key.scale.z > 0))
+                sc->Fail("animated scale factors must be positive");
+        }
+        k.Finish("an animation key");
+        times.push_back(key.time);
+        keys.push_back(key);
+    }
+    CheckKeyOrder(times, elements);
+    try {
+        return AnimatedTransform(std::move(keys), interp);
+    } catch (const std::invalid_argument& e) {
+        v.Fail(e.what());
+    }
+}
+
+// The camera's "animation": keys of eye, target, up, fov and focus_distance; a key's
+// missing values are the camera's own.
+CameraTrack ParseCameraAnimation(const JsonValue& v, const CameraKey& base, double fps) {
+    JsonObject o = v.AsObject();
+    const Interpolation interp = ParseInterpolationKey(o);
+    JsonValue keys_v = o.Required("keys");
+    o.Finish("a camera animation");
+    if (!keys_v.IsArray() || keys_v.Size() == 0)
+        keys_v.Fail("expected a non-empty array of keys, got " +
+                    (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
+    std::vector<JsonValue> elements = keys_v.Elements();
+    std::vector<CameraKey> keys;
+    std::vector<double> times;
+    for (const JsonValue& kv : elements) {
+        JsonObject k = kv.AsObject();
+        CameraKey key = base;
+        key.time = ParseKeyTime(k, kv, fps);
+        if (auto e = k.Get("eye")) key.eye = e->AsVec3();
+        if (auto t = k.Get("target")) key.target = t->AsVec3();
+        if (auto u = k.Get("up")) key.up = NonZeroVec3(*u);
+        if (auto f = k.Get("fov")) key.fov_deg = InRange(*f, 0, 180, true, true);
+        if (auto f = k.Get("focus_distance")) key.focus_distance = Positive(*f);
+        k.Finish("a camera key");
+        if (key.eye == key.target) kv.Fail("target must differ from eye");
+        if (LengthSquared(Cross(Normalize(key.target - key.eye), Normalize(key.up))) < 1e-10f)
+            kv.Fail("up is parallel to the view direction");
+        times.push_back(key.time);
+        keys.push_back(key);
+    }
+    CheckKeyOrder(times, elements);
+    try {
+        return CameraTrack(std::move(keys), interp);
+    } catch (const std::invalid_argument& e) {
+        v.Fail(e.what());
+    }
+}
+
+// ---------------------------------------------------------------------------------------
 // camera
 
-CameraRecord ParseCamera(const JsonValue& v) {
+CameraRecord ParseCamera(const JsonValue& v, double fps) {
     JsonObject o = v.AsObject();
     CameraRecord c;
     c.where = v.Where();
@@ -381,9 +531,24 @@ CameraRecord ParseCamera(const JsonValue& v) {
     if (auto f = o.Get("focus_distance")) c.focus_distance = Positive(*f);
     if (auto s = o.Get("shutter")) {
         std::vector<float> t = s->AsFloats(2);
+        if (!(t[0] >= 0 && t[1] <= 1))
+            s->Fail(
+                "shutter times are fractions of a frame, within [0, 1] (0.5: a 180 degree "
+                "shutter), got [" +
+                Number(t[0]) + ", " + Number(t[1]) + "]");
         if (t[1] < t[0]) s->Fail("shutter closes before it opens");
         c.shutter_open = t[0];
         c.shutter_close = t[1];
+    }
+    if (auto a = o.Get("animation")) {
+        CameraKey base;
+        base.time = 0;
+        base.eye = eye;
+        base.target = target;
+        base.up = up;
+        base.fov_deg = c.fov_deg;
+        base.focus_distance = c.focus_distance;
+        c.track = ParseCameraAnimation(*a, base, fps);
     }
     o.Finish("a perspective camera");
     return c;
@@ -821,13 +986,49 @@ ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
             break;
         }
         case ShapeKind::kMesh: {
+            auto resolve_mesh = [&](const JsonValue& file) {
+                std::string path = ctx.ResolveFile(file, "mesh file");
+                std::string ext = fs::path(path).extension().string();
+                for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+                if (ext != ".obj" && ext != ".ply")
+                    file.Fail("unsupported mesh format '" + ext + "' (expected .obj or .ply)");
+                return path;
+            };
+            if (auto deform = o.Get("deform")) {
+                if (o.Has("file"))
+                    o.Required("file").Fail(
+                        "a deforming mesh names its files in 'deform', not in 'file'");
+                if (in_object) deform->Fail("shapes of instanced objects cannot deform");
+                if (o.Has("emission")) deform->Fail("emitting shapes cannot deform");
+                JsonObject d = deform->AsObject();
+                s.deform_interpolation = ParseInterpolationKey(d);
+                JsonValue keys_v = d.Required("keys");
+                d.Finish("a deformation");
+                if (!keys_v.IsArray() || keys_v.Size() == 0)
+                    keys_v.Fail(
+                        "expected a non-empty array of keys, got " +
+                        (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
+                std::vector<JsonValue> elements = keys_v.Elements();
+                std::vector<double> times;
+                for (const JsonValue& kv : elements) {
+                    JsonObject k = kv.AsObject();
+                    DeformKey key;
+                    key.time = ParseKeyTime(k, kv, ctx.fps);
+                    JsonValue file = k.Required("file");
+                    key.path = resolve_mesh(file);
+                    key.where = file.Where();
+                    k.Finish("a deformation key");
+                    times.push_back(key.time);
+                    s.deform.push_back(key);
+                }
+                CheckKeyOrder(times, elements);
+                s.path = s.deform[0].path;
+                s.path_where = s.deform[0].where;
+                break;
+            }
             JsonValue file = o.Required("file");
-            s.path = ctx.ResolveFile(file, "mesh file");
+            s.path = resolve_mesh(file);
             s.path_where = file.Where();
-            std::string ext = fs::path(s.path).extension().string();
-            for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-            if (ext != ".obj" && ext != ".ply")
-                file.Fail("unsupported mesh format '" + ext + "' (expected .obj or .ply)");
             break;
         }
         case ShapeKind::kTriangles:
@@ -836,6 +1037,13 @@ ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
     }
     if (s.kind != ShapeKind::kSphere) {
         if (auto t = o.Get("transform")) s.transform = ParseTransform(*t);
+    }
+    if (auto a = o.Get("animation")) {
+        if (in_object)
+            a->Fail("shapes of instanced objects cannot be animated; animate the instance");
+        if (o.Has("emission"))
+            a->Fail("emitting shapes cannot be animated (lights stay where they are)");
+        s.animation = ParseAnimation(*a, ctx.fps);
     }
 
     if (in_object && o.Has("emission"))
@@ -873,6 +1081,7 @@ InstanceRecord ParseInstance(const JsonValue& v, const Context& ctx) {
     r.where = v.Where();
     r.object = ParseReference(o.Required("object"), ctx.objects, "object");
     if (auto t = o.Get("transform")) r.transform = ParseTransform(*t);
+    if (auto a = o.Get("animation")) r.animation = ParseAnimation(*a, ctx.fps);
     o.Finish("an instance");
     return r;
 }
@@ -932,7 +1141,7 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
     rec.file = shown;
     rec.sandbox_root = ctx.sandbox_root.string();
 
-    auto render = root.Get("render");
+    auto render = root.Get("render"), animation = root.Get("animation");
     JsonValue camera = root.Required("camera");
     auto textures = root.Get("textures"), materials = root.Get("materials");
     auto shapes = root.Get("shapes"), objects = root.Get("objects");
@@ -941,7 +1150,9 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
     root.Finish("a scene");
 
     if (render) rec.render = ParseRender(*render);
-    rec.camera = ParseCamera(camera);
+    if (animation) rec.animation = ParseAnimationSettings(*animation);
+    ctx.fps = rec.animation.fps;
+    rec.camera = ParseCamera(camera, ctx.fps);
     if (textures) {
         ctx.section = "textures";
         for (auto& [name, value] : textures->AsObject().Entries()) {

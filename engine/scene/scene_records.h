@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/animation.h"
 #include "core/color.h"
 #include "core/math.h"
 #include "core/transform.h"
@@ -74,6 +75,13 @@ struct EmissionRecord {
     bool two_sided = false;
 };
 
+// One key of a deforming mesh: the mesh file that gives every vertex's place at `time`.
+struct DeformKey {
+    double time = 0;
+    std::string path;   // resolved against the scene file's folder
+    std::string where;  // where the key was given
+};
+
 enum class ShapeKind { kSphere, kRectangle, kDisk, kBox, kQuad, kMesh, kTriangles };
 
 struct ShapeRecord {
@@ -90,7 +98,15 @@ struct ShapeRecord {
     std::string path_where;  // mesh: where "file" was given
     TriangleMesh triangles;  // triangles: the mesh written in the file, in object space
     Transform transform;     // object to world (all but spheres)
-    int material = -1;       // index into SceneRecords::materials; -1: none
+    // Motion: the world transform at time t is animation.Evaluate(t) * transform (for a
+    // sphere, its centre moves by animation.Evaluate(t)). Not animated unless given.
+    std::optional<AnimatedTransform> animation;
+    // A deforming mesh (kind kMesh, "deform" instead of "file"): one file per key, all of
+    // the same topology; path above is the first key's. Vertex positions and normals
+    // interpolate between keys (before `transform` and `animation` apply).
+    std::vector<DeformKey> deform;
+    Interpolation deform_interpolation = Interpolation::kLinear;
+    int material = -1;  // index into SceneRecords::materials; -1: none
     std::optional<EmissionRecord> emission;
 };
 
@@ -104,6 +120,7 @@ struct InstanceRecord {
     std::string where;
     int object = -1;  // index into SceneRecords::objects
     Transform transform;
+    std::optional<AnimatedTransform> animation;  // as ShapeRecord::animation
 };
 
 enum class LightKind { kPoint, kSpot, kDirectional, kEnvironment };
@@ -122,7 +139,17 @@ struct CameraRecord {
     float fov_deg = 40;
     float lens_radius = 0;
     float focus_distance = 1;
+    // The shutter as fractions of a frame: frame f sees the scene over
+    // [(f + shutter_open) / fps, (f + shutter_close) / fps] seconds. Equal: no motion blur.
     float shutter_open = 0, shutter_close = 0;
+    // Keyed eye, target, up, fov and focus distance; the values above when absent.
+    std::optional<CameraTrack> track;
+};
+
+// The scene's clock: its frame rate and the frames it renders unless told otherwise.
+struct AnimationSettings {
+    double fps = 24;
+    int frame_start = 0, frame_end = 0;
 };
 
 struct SceneRecords {
@@ -137,6 +164,7 @@ struct SceneRecords {
     // first spelling of each resolved path), in order of appearance in the file.
     std::vector<std::string> referenced_files;
     RenderSettings render;
+    AnimationSettings animation;
     CameraRecord camera;
     std::vector<TextureRecord> textures;
     // The named materials in file order, then those given inline in blends.
