@@ -38,7 +38,11 @@ bool TracePhotonPath(const Scene& scene, const PhotonSettings& settings, PathWan
     Vec2 u_pos(rng.NextFloat(), rng.NextFloat());
     Vec2 u_dir(rng.NextFloat(), rng.NextFloat());
     if (!light || !(pmf > 0)) return false;
-    std::optional<LightLeSample> le = light->SampleLe(u_pos, u_dir, 0);
+    // With moving shapes, each path is traced at its own time across the shutter, so the
+    // maps hold the shutter's average light, as the camera's samples see it. (A still
+    // scene draws no time, and its maps stay what they were.)
+    const float time = scene.HasMotion() ? rng.NextFloat() : 0.0f;
+    std::optional<LightLeSample> le = light->SampleLe(u_pos, u_dir, time);
     if (!le || !(le->pdf_pos > 0) || !(le->pdf_dir > 0) || le->L.IsBlack()) return false;
     bool area = light->Type() == LightType::kArea;
     float cos_theta = area ? AbsDot(le->n, le->ray.d) : 1;

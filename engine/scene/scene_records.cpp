@@ -423,17 +423,23 @@ void CheckKeyOrder(const std::vector<double>& times, const std::vector<JsonValue
                          " s) is not after the previous key's (" + Number(times[i - 1]) + " s)");
 }
 
+// The "keys" of an animation object `o` (whose other keys are read already): a
+// non-empty array. Finishes `o` as `what`.
+std::vector<JsonValue> AnimationKeys(JsonObject& o, const std::string& what) {
+    JsonValue keys_v = o.Required("keys");
+    o.Finish(what);
+    if (!keys_v.IsArray() || keys_v.Size() == 0)
+        keys_v.Fail("expected a non-empty array of keys, got " +
+                    (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
+    return keys_v.Elements();
+}
+
 // {"interpolation": ..., "keys": [{"time" | "frame", "translate", "rotate": {"axis",
 // "angle"}, "scale"}, ...]}: each key a whole pose (absent parts: identity).
 AnimatedTransform ParseAnimation(const JsonValue& v, double fps) {
     JsonObject o = v.AsObject();
     const Interpolation interp = ParseInterpolationKey(o);
-    JsonValue keys_v = o.Required("keys");
-    o.Finish("an animation");
-    if (!keys_v.IsArray() || keys_v.Size() == 0)
-        keys_v.Fail("expected a non-empty array of keys, got " +
-                    (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
-    std::vector<JsonValue> elements = keys_v.Elements();
+    std::vector<JsonValue> elements = AnimationKeys(o, "an animation");
     std::vector<TransformKey> keys;
     std::vector<double> times;
     for (const JsonValue& kv : elements) {
@@ -471,12 +477,7 @@ AnimatedTransform ParseAnimation(const JsonValue& v, double fps) {
 CameraTrack ParseCameraAnimation(const JsonValue& v, const CameraKey& base, double fps) {
     JsonObject o = v.AsObject();
     const Interpolation interp = ParseInterpolationKey(o);
-    JsonValue keys_v = o.Required("keys");
-    o.Finish("a camera animation");
-    if (!keys_v.IsArray() || keys_v.Size() == 0)
-        keys_v.Fail("expected a non-empty array of keys, got " +
-                    (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
-    std::vector<JsonValue> elements = keys_v.Elements();
+    std::vector<JsonValue> elements = AnimationKeys(o, "a camera animation");
     std::vector<CameraKey> keys;
     std::vector<double> times;
     for (const JsonValue& kv : elements) {
@@ -1002,13 +1003,7 @@ ShapeRecord ParseShape(const JsonValue& v, const Context& ctx, bool in_object) {
                 if (o.Has("emission")) deform->Fail("emitting shapes cannot deform");
                 JsonObject d = deform->AsObject();
                 s.deform_interpolation = ParseInterpolationKey(d);
-                JsonValue keys_v = d.Required("keys");
-                d.Finish("a deformation");
-                if (!keys_v.IsArray() || keys_v.Size() == 0)
-                    keys_v.Fail(
-                        "expected a non-empty array of keys, got " +
-                        (keys_v.IsArray() ? std::string("an empty array") : keys_v.KindName()));
-                std::vector<JsonValue> elements = keys_v.Elements();
+                std::vector<JsonValue> elements = AnimationKeys(d, "a deformation");
                 std::vector<double> times;
                 for (const JsonValue& kv : elements) {
                     JsonObject k = kv.AsObject();
