@@ -56,8 +56,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::string bytes = in.Rest();
     try {
         auto texture = std::make_unique<tessera::ImageTexture>(
-            tessera::DecodeImage(bytes, std::string("image") + ext, FuzzLimits()),
-            srgb);
+            tessera::DecodeImage(bytes, std::string("image") + ext, FuzzLimits()), srgb);
         const float max_value = texture->MaxValue();
         for (float u : {0.0f, 0.3f, 0.999f, -2.5f, 1e9f, NAN}) {
             tessera::TextureContext ctx;

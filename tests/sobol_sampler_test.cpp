@@ -116,8 +116,8 @@ TEST(SobolConstructionTest, OwenScramblingKeepsPrefixes) {
         int n = static_cast<int>(rng.NextU32() % 32);
         uint32_t y = (x & ((1u << n) - 1)) | ((x ^ (1u << n)) & (1u << n)) |
                      (rng.NextU32() & ~((2u << n) - 1));
-        for (uint32_t seed : {static_cast<uint32_t>(key), static_cast<uint32_t>(key >> 32),
-                              SobolSecondKey(key)}) {
+        for (uint32_t seed :
+             {static_cast<uint32_t>(key), static_cast<uint32_t>(key >> 32), SobolSecondKey(key)}) {
             uint32_t sx = OwenScrambleReversed(x, seed), sy = OwenScrambleReversed(y, seed);
             uint32_t prefix = (1u << n) - 1;
             ASSERT_EQ(sx & prefix, sy & prefix) << n;

@@ -85,8 +85,7 @@ inline constexpr uint32_t OwenScrambleReversed(uint32_t x, uint32_t seed) {
 // A third 32-bit key from a 64-bit one whose halves key the shuffle and the first
 // coordinate: the high and low halves of a full 64 x 64-bit product, xored.
 inline constexpr uint32_t SobolSecondKey(uint64_t key) {
-    const unsigned __int128 m =
-        static_cast<unsigned __int128>(key) * 0x9e3779b97f4a7c15ull;
+    const unsigned __int128 m = static_cast<unsigned __int128>(key) * 0x9e3779b97f4a7c15ull;
     const uint64_t mixed = static_cast<uint64_t>(m) ^ static_cast<uint64_t>(m >> 64);
     return static_cast<uint32_t>(mixed ^ (mixed >> 32));
 }
