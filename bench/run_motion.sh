@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Motion blur's cost and noise (bench_pt), on frame 3 of scenes/animated-cornell and on
-# bench/moving-bar.json (a bar sweeping and turning across the frame in one shutter):
+# bench/moving-bar.json (a bar sweeping and turning across the frame in one shutter, seen
+# by its direct light alone, so that motion is the only source of noise):
 #   - cost: the scene with its shutter open against a copy with the shutter closed, at
 #     equal samples (seconds, rays/s);
-#   - noise: space-time stratified time samples (render.time_sampler "stratified") against
-#     independent ones, at equal samples, RMSE against a long reference.
+#   - noise: the three time samplers at equal samples, RMSE against a long reference:
+#     space-time stratified (render.time_sampler "stratified"), the pixel sampler's own
+#     time dimension ("sampler") and independent uniform times ("independent").
 # References are rendered once into $REF_DIR (kept out of git).
 #
 #   bench/run_motion.sh [build-dir]     REF_DIR (./bench-references), THREADS (all),
@@ -43,7 +45,8 @@ run() {  # name scene frame width height emitter
   echo "== $name, frame $frame: time samplers at $spp spp"
   "$build/bench/bench_pt" "$scene" "$ref" --threads "$threads" --repeat "$repeat" \
     --emitter "$emitter" --frame "$frame" \
-    "spp=$spp time_sampler=independent" "spp=$spp time_sampler=stratified"
+    "spp=$spp time_sampler=independent" "spp=$spp time_sampler=sampler" \
+    "spp=$spp time_sampler=stratified"
   local closed
   closed="$(dirname "$scene")/.closed-shutter-$name.json"
   closed_copy "$scene" "$closed"

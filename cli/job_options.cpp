@@ -47,8 +47,9 @@ void RenderFlags::AddTo(CLI::App& cmd) {
         ->check(CLI::IsMember(SamplerTypeNames()));
     cmd.add_option("--time-sampler", time_sampler,
                    "How a pixel's samples spread over the shutter: stratified (a space-time "
-                   "pattern, the default) or independent")
-        ->check(CLI::IsMember({"independent", "stratified"}));
+                   "pattern, the default), sampler (the pixel sampler's own time dimension) "
+                   "or independent (uniform random times)")
+        ->check(CLI::IsMember({"stratified", "sampler", "independent"}));
     cmd.add_option("--filter", filter,
                    "Pixel filter: box, gaussian, mitchell or tent, at its default radius "
                    "(replaces the scene's filter when the type differs)")

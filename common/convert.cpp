@@ -33,7 +33,7 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
         r.time_sampler = ParseTimeSampler(o.time_sampler());
         if (!r.time_sampler)
             throw std::invalid_argument("unknown time sampler '" + o.time_sampler() +
-                                        "' (known: independent, stratified)");
+                                        "' (known: stratified, sampler, independent)");
     }
     if (o.has_irradiance_cache()) r.irradiance_cache = o.irradiance_cache();
     if (o.has_photons_global()) r.photons_global = o.photons_global();

@@ -25,20 +25,42 @@ void SetFloatingPointMode() {
 // Names the photon stage's streams apart from the pixel streams of the same seed.
 constexpr uint64_t kPhotonStreamSalt = 0x70686f746f6e73ull;
 
-// The space-time pattern the settings ask for; null for independent times.
-const TimePattern* TimePatternOf(const RenderSettings& s) {
-    if (s.time_sampler != TimeSampler::kStratified) return nullptr;
-    return &TimePattern::ForGrid(TimePattern::GridFor(s.sampler, s.spp));
-}
+// Names the independent time sampler's stream apart from the samplers' streams.
+constexpr uint64_t kIndependentTimeSalt = 0x74696d65696e64ull;  // "timeind"
 
-// A camera sample's time: from the pattern when there is one, else the sampler's next 1D
-// value. Both draw exactly one sampler dimension, so whatever does not read the time
-// renders alike either way.
-float SampleTime(const TimePattern* pattern, Sampler& sampler, Vec2 u_pixel, uint64_t frame_key,
-                 Vec2i pixel) {
-    const float u = sampler.Get1D();
-    return pattern ? pattern->Sample(u_pixel, u, TimePattern::PixelShift(frame_key, pixel)) : u;
-}
+// Draws the camera samples' times as the settings ask (render_settings.h, TimeSampler).
+// Every kind draws exactly one sampler dimension, so whatever does not read the time
+// renders alike with any of them.
+class ShutterTimes {
+  public:
+    explicit ShutterTimes(const RenderSettings& s)
+        : kind_(s.time_sampler),
+          frame_key_(Hash(s.seed, s.frame)),
+          pattern_(kind_ == TimeSampler::kStratified
+                       ? &TimePattern::ForGrid(TimePattern::GridFor(s.sampler, s.spp))
+                       : nullptr) {}
+
+    // The time in [0, 1) of the shutter of sample `index` of `pixel`, whose sub-pixel
+    // position came from u_pixel.
+    float Sample(Sampler& sampler, Vec2 u_pixel, Vec2i pixel, int index) const {
+        const float u = sampler.Get1D();
+        switch (kind_) {
+            case TimeSampler::kStratified:
+                return pattern_->Sample(u_pixel, u, TimePattern::PixelShift(frame_key_, pixel));
+            case TimeSampler::kIndependent:
+                return UniformAt(Hash(frame_key_, pixel.x, pixel.y, kIndependentTimeSalt),
+                                 static_cast<uint64_t>(index));
+            case TimeSampler::kSampler:
+                break;
+        }
+        return u;
+    }
+
+  private:
+    TimeSampler kind_;
+    uint64_t frame_key_;
+    const TimePattern* pattern_;
+};
 
 }  // namespace
 
@@ -181,8 +203,7 @@ std::string FrameRenderer::RunIrradianceTask(int stage, int task_index,
     // to fine across tile borders too; each at its centre, on its first sample.
     const int y0 = (tile.lo.y + stride - 1) / stride * stride;
     const int x0 = (tile.lo.x + stride - 1) / stride * stride;
-    const TimePattern* time_pattern = TimePatternOf(settings_);
-    const uint64_t frame_key = Hash(settings_.seed, settings_.frame);
+    const ShutterTimes times(settings_);
     for (int y = y0; y < tile.hi.y; y += stride) {
         for (int x = x0; x < tile.hi.x; x += stride) {
             sampler->StartPixelSample(Vec2i(x, y), 0);
@@ -190,7 +211,7 @@ std::string FrameRenderer::RunIrradianceTask(int stage, int task_index,
             const Vec2 u = sampler->GetPixel2D();
             cs.p_film = Vec2(x + 0.5f, y + 0.5f);
             cs.p_lens = sampler->Get2D();
-            cs.time = SampleTime(time_pattern, *sampler, u, frame_key, Vec2i(x, y));
+            cs.time = times.Sample(*sampler, u, Vec2i(x, y), 0);
             integrator->PrepareIrradiance(camera.GenerateRay(cs), *sampler, arena, state.get());
             arena.Reset();
         }
@@ -209,8 +230,7 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     TileFilm film(tile, resolution_, *filter_, settings_.filter.sampling);
     std::unique_ptr<Sampler> sampler = sampler_->Clone();
     const Camera& camera = scene_.GetCamera();
-    const TimePattern* time_pattern = TimePatternOf(settings_);
-    const uint64_t frame_key = Hash(settings_.seed, settings_.frame);
+    const ShutterTimes times(settings_);
     for (int y = tile.lo.y; y < tile.hi.y; ++y) {
         for (int x = tile.lo.x; x < tile.hi.x; ++x) {
             for (int i = 0; i < settings_.spp; ++i) {
@@ -227,7 +247,7 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
                     cs.p_film = Vec2(x + u.x, y + u.y);
                 }
                 cs.p_lens = sampler->Get2D();
-                cs.time = SampleTime(time_pattern, *sampler, u, frame_key, Vec2i(x, y));
+                cs.time = times.Sample(*sampler, u, Vec2i(x, y), i);
                 Ray ray = camera.GenerateRay(cs);
                 SampleValue v = integrator->Li(ray, *sampler, arena, state.get());
                 arena.Reset();

@@ -66,18 +66,34 @@ inline std::optional<DebugView> ParseDebugView(const std::string& name) {
     return std::nullopt;
 }
 
-// How a pixel's samples spread over the shutter (sampler/time_pattern.h): independently
-// (the sampler's next 1D value), or stratified in a space-time pattern in which each of a
-// pixel's samples takes its own time stratum and neighbouring sub-pixel cells take distant
-// ones. "independent", "stratified": the names the scene format and the command line use.
-enum class TimeSampler { kIndependent, kStratified };
+// How a pixel's samples spread over the shutter (sampler/time_pattern.h):
+//   stratified   a space-time pattern: each of a pixel's samples takes its own time
+//                stratum, and neighbouring sub-pixel cells take distant ones (the default);
+//   sampler      the pixel sampler's next 1D value: stratified in time by itself (with the
+//                Sobol and stratified samplers) but paired with the sub-pixel position at
+//                random, as renderers commonly draw the time;
+//   independent  uniform random times, independent of each other and of the position
+//                (what Cook's space-time patterns were first measured against).
+// The names are those the scene format and the command line use.
+enum class TimeSampler { kIndependent, kStratified, kSampler };
+
+inline constexpr TimeSampler kTimeSamplers[] = {TimeSampler::kStratified, TimeSampler::kSampler,
+                                                TimeSampler::kIndependent};
 
 inline const char* TimeSamplerName(TimeSampler sampler) {
-    return sampler == TimeSampler::kIndependent ? "independent" : "stratified";
+    switch (sampler) {
+        case TimeSampler::kIndependent:
+            return "independent";
+        case TimeSampler::kSampler:
+            return "sampler";
+        case TimeSampler::kStratified:
+            break;
+    }
+    return "stratified";
 }
 
 inline std::optional<TimeSampler> ParseTimeSampler(std::string_view name) {
-    for (TimeSampler t : {TimeSampler::kIndependent, TimeSampler::kStratified})
+    for (TimeSampler t : kTimeSamplers)
         if (name == TimeSamplerName(t)) return t;
     return std::nullopt;
 }
@@ -91,7 +107,7 @@ struct RenderSettings {
     // rendered the example scenes with the least error per second (bench/run_pt.sh).
     float rr_threshold = 0.25f;
     SamplerType sampler = SamplerType::kSobol;
-    // Matters only where something moves: both draw the same sampler dimensions.
+    // Matters only where something moves: all three draw the same sampler dimensions.
     TimeSampler time_sampler = TimeSampler::kStratified;
     uint64_t seed = 0;
     int tile_size = 32;

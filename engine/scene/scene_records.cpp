@@ -270,8 +270,9 @@ RenderSettings ParseRender(const JsonValue& v) {
         r.sampler = *ParseSamplerType(names[ParseEnum(*s, names, "sampler")]);
     }
     if (auto t = o.Get("time_sampler")) {
-        const int i = ParseEnum(*t, {"independent", "stratified"}, "time sampler");
-        r.time_sampler = i == 0 ? TimeSampler::kIndependent : TimeSampler::kStratified;
+        std::vector<std::string> names;
+        for (TimeSampler s : kTimeSamplers) names.push_back(TimeSamplerName(s));
+        r.time_sampler = kTimeSamplers[ParseEnum(*t, names, "time sampler")];
     }
     if (auto s = o.Get("seed")) r.seed = s->AsUint64();
     if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
