@@ -15,9 +15,10 @@ namespace tessera {
 void RenderFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
     cmd.add_option("--integrator", integrator,
-                   "Integrator: path, direct, photon (photon mapping with final gathering) or "
-                   "irradiance-cache (path-traced direct light, cached indirect light)")
-        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache"}));
+                   "Integrator: path, direct, photon (photon mapping with final gathering), "
+                   "irradiance-cache (path-traced direct light, cached indirect light) or "
+                   "light (light tracing: paths from the lights, splatted onto the film)")
+        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache", "light"}));
     cmd.add_flag("--irradiance-cache", irradiance_cache,
                  "photon: put the final gather behind an irradiance cache");
     cmd.add_option("--photons", photons, "photon: photons stored in the global map")
@@ -62,6 +63,9 @@ void RenderFlags::AddTo(CLI::App& cmd) {
         ->check(CLI::NonNegativeNumber);
     cmd.add_option("--seed", seed, "Seed of every random stream");
     cmd.add_option("--tile-size", tile_size, "Tile edge in pixels")->check(CLI::PositiveNumber);
+    cmd.add_option("--light-paths-per-task", light_paths_per_task,
+                   "Light tracing: light paths per farm task (default 1048576)")
+        ->check(CLI::Range(1, 1 << 30));
     cmd.add_option("--width", width, "Image width (overrides the scene)")
         ->check(CLI::Range(1, 16384));
     cmd.add_option("--height", height, "Image height (overrides the scene)")
@@ -73,6 +77,7 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     if (cmd.count("--spp")) o.spp = spp;
     if (cmd.count("--max-depth")) o.max_depth = max_depth;
     if (cmd.count("--tile-size")) o.tile_size = tile_size;
+    if (cmd.count("--light-paths-per-task")) o.light_paths_per_task = light_paths_per_task;
     if (cmd.count("--width")) o.width = width;
     if (cmd.count("--height")) o.height = height;
     if (cmd.count("--seed")) o.seed = seed;

@@ -15,7 +15,7 @@ namespace tessera {
 // The render options every command that renders takes (`render`, `submit`, `farm`).
 struct RenderFlags {
     // CLI11 fills plain values; only the given ones become render overrides.
-    int spp = 0, max_depth = 0, tile_size = 0, width = 0, height = 0;
+    int spp = 0, max_depth = 0, tile_size = 0, width = 0, height = 0, light_paths_per_task = 0;
     uint64_t seed = 0;
     std::string integrator, sampler, time_sampler;
     bool irradiance_cache = false, no_gradients = false;

@@ -101,9 +101,11 @@ void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
         progress = [&](const StagePlan& stage, int done, int total) {
             if (!bar || bar_stage != stage.name) {
                 if (bar) bar->Finish();
-                bar = std::make_unique<ProgressBar>(
-                    stage.label, total, stderr,
-                    stage.task_kind == TaskKind::kTile ? "tiles" : "batches");
+                bar = std::make_unique<ProgressBar>(stage.label, total, stderr,
+                                                    stage.task_kind == TaskKind::kTile ? "tiles"
+                                                    : stage.task_kind == TaskKind::kSplat
+                                                        ? "bands"
+                                                        : "batches");
                 bar_stage = stage.name;
             }
             bar->Update(done);

@@ -11,6 +11,7 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
     if (o.has_max_depth()) r.max_depth = o.max_depth();
     if (o.has_seed()) r.seed = o.seed();
     if (o.has_tile_size()) r.tile_size = o.tile_size();
+    if (o.has_light_paths_per_task()) r.light_paths_per_task = o.light_paths_per_task();
     if (o.has_width()) r.width = o.width();
     if (o.has_height()) r.height = o.height();
     if (o.has_sampler()) {
@@ -59,6 +60,7 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.max_depth) o.set_max_depth(*r.max_depth);
     if (r.seed) o.set_seed(*r.seed);
     if (r.tile_size) o.set_tile_size(*r.tile_size);
+    if (r.light_paths_per_task) o.set_light_paths_per_task(*r.light_paths_per_task);
     if (r.width) o.set_width(*r.width);
     if (r.height) o.set_height(*r.height);
     if (r.sampler) o.set_sampler(SamplerTypeName(*r.sampler));

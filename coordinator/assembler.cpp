@@ -117,12 +117,23 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                                              in.results.size(), tiles));
 
     FrameAssembler assembler(plan);
-    ReadResults(in.results, in.completions, blobs, "tile", [&](int index, std::string bytes) {
-        TileResult result = DecodeTileResult(bytes);
-        if (result.task_index != index)
-            throw std::runtime_error(fmt::format("the blob holds tile {}", result.task_index));
-        assembler.Add(std::move(result));
-    });
+    const bool splats = plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat;
+    ReadResults(
+        in.results, in.completions, blobs, splats ? "splat task" : "tile",
+        [&](int index, std::string bytes) {
+            if (splats) {
+                SplatResult result = DecodeSplatResult(bytes);
+                if (result.task_index != index)
+                    throw std::runtime_error(
+                        fmt::format("the blob holds splat task {}", result.task_index));
+                assembler.Add(std::move(result));
+                return;
+            }
+            TileResult result = DecodeTileResult(bytes);
+            if (result.task_index != index)
+                throw std::runtime_error(fmt::format("the blob holds tile {}", result.task_index));
+            assembler.Add(std::move(result));
+        });
     const Image image = assembler.Assemble();
     const double seconds =
         in.started_ms > 0 ? std::max<int64_t>(0, now_ms - in.started_ms) / 1e3 : 0;

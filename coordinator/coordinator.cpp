@@ -30,16 +30,6 @@ std::string EnsureDir(const std::string& dir, const char* what) {
     return dir;
 }
 
-// Where the first NaN or infinite value of a tile result is; empty if there is none.
-std::string NonFiniteValue(const std::string& bytes) {
-    const TileResult tile = DecodeTileResult(bytes);
-    for (size_t i = 0; i < tile.data.size(); ++i)
-        if (!std::isfinite(tile.data[i]))
-            return fmt::format("value {} (pixel {}, channel {}) is {}", i, i / TileFilm::kChannels,
-                               i % TileFilm::kChannels, tile.data[i]);
-    return {};
-}
-
 }  // namespace
 
 Coordinator::StateLock::StateLock(const std::string& state_dir) {
@@ -246,7 +236,7 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
                         task_id, stage, check.task_index, check.job_id, check.frame, e.what()));
     }
     if (check.stage == check.plan->RenderStageIndex()) {
-        if (const std::string bad = NonFiniteValue(bytes); !bad.empty()) {
+        if (const std::string bad = FirstNonFiniteValue(*check.plan, bytes); !bad.empty()) {
             const std::string message =
                 fmt::format("{} of task {} ({} task {} of {} frame {}) has a non-finite value: {}",
                             what, task_id, stage, check.task_index, check.job_id, check.frame, bad);

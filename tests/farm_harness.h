@@ -235,6 +235,7 @@ inline v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
         if (a == "--ic-passes") o.ic_passes = std::stoi(v);
         if (a == "--ic-samples") o.ic_samples = std::stoi(v);
         if (a == "--ic-accuracy") o.ic_accuracy = std::stof(v);
+        if (a == "--light-paths-per-task") o.light_paths_per_task = std::stoi(v);
     }
     return ToProto(o);
 }

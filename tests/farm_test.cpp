@@ -124,6 +124,24 @@ TEST_F(FarmTest, OneWorkerMatchesTheLocalRender) {
     ExpectSameImage(RenderLocal(kSmall), out / "cornell-box.0000.exr");
 }
 
+// Light tracing on the farm: its render stage is made of splat tasks (here 16 bands of
+// 1024 light paths, each a whole-frame buffer), summed in task order as the local runner
+// sums them, whichever of the two workers ran which task.
+TEST_F(FarmTest, LightTracingMatchesTheLocalRender) {
+    const std::vector<std::string> light =
+        Concat(kSmall, {"--integrator", "light", "--light-paths-per-task", "1024"});
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    StartWorker(port, "w1", 1);
+    StartWorker(port, "w2", 1);
+    Stubs s(port);
+    const std::string job = SubmitCornell(s, light);
+    v1::JobStatus status;
+    ASSERT_TRUE(WaitDone(s, job, &status));
+    EXPECT_EQ(status.tasks_total(), 16);
+    ExpectSameImage(RenderLocal(light), Download(s, job, 0));
+}
+
 // The README's command: a whole farm on this machine, two frames.
 TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
     fs::path out = dir_ / "frames";

@@ -3,12 +3,14 @@
 #include <stdexcept>
 
 #include "integrator/gather.h"
+#include "integrator/light_tracer.h"
 #include "integrator/path.h"
 
 namespace tessera {
 
 const char* const* IntegratorNames() {
-    static const char* const kNames[] = {"path", "direct", "photon", "irradiance-cache", nullptr};
+    static const char* const kNames[] = {"path",  "direct", "photon", "irradiance-cache",
+                                         "light", nullptr};
     return kNames;
 }
 
@@ -17,6 +19,8 @@ bool UsesIrradianceCache(const RenderSettings& s) {
 }
 
 bool UsesPhotonMaps(const RenderSettings& s) { return s.integrator == "photon"; }
+
+bool TracesLightPaths(const RenderSettings& s) { return s.integrator == "light"; }
 
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs) {
@@ -31,8 +35,9 @@ std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const
     }
     if (name == "irradiance-cache")
         return std::make_unique<GatherIntegrator>(scene, settings, inputs);
+    if (name == "light") return std::make_unique<LightTracerIntegrator>(scene, is);
     throw std::invalid_argument("unknown integrator '" + name +
-                                "' (known: path, direct, photon, irradiance-cache)");
+                                "' (known: path, direct, photon, irradiance-cache, light)");
 }
 
 }  // namespace tessera

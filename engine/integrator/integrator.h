@@ -8,6 +8,7 @@
 
 #include "core/arena.h"
 #include "film/film.h"
+#include "film/splat_film.h"
 #include "integrator/frame_inputs.h"
 #include "plan/render_settings.h"
 #include "sampler/sampler.h"
@@ -40,6 +41,13 @@ class Integrator {
     // and allocates BSDFs in `arena`. `state` is the task's NewTaskState().
     virtual SampleValue Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena,
                            IntegratorTaskState* state) const = 0;
+    // Integrators whose paths start on lights (light tracing; BDPT's t = 1 strategies):
+    // traces the light path of one sample stream (`sampler` already started at a pixel
+    // stream and sample index, which name the path's random numbers, not where it lands)
+    // at shutter time `time` in [0, 1), and adds its contributions to `film` wherever they
+    // land. The film's scale holds the 1/spp of camera/camera.h's normalisation.
+    virtual void SplatPath(Sampler& /*sampler*/, float /*time*/, ScratchBuffer& /*arena*/,
+                           SplatFilm& /*film*/, IntegratorTaskState* /*state*/) const {}
     // Irradiance caching: makes sure that the cache (shared or the task's own) covers
     // the point where `ray` first meets a diffuse surface.
     virtual void PrepareIrradiance(const Ray& /*ray*/, Sampler& /*sampler*/,
@@ -53,8 +61,9 @@ class Integrator {
 
 // Names: "path" (next-event estimation + MIS, the reference), "direct" (emission plus
 // one bounce of direct light, with MIS; specular chains followed), "photon" (Jensen's
-// photon mapping with final gathering; needs `inputs.photons`) and "irradiance-cache"
-// (path-traced direct light, indirect diffuse light from Ward's irradiance cache).
+// photon mapping with final gathering; needs `inputs.photons`), "irradiance-cache"
+// (path-traced direct light, indirect diffuse light from Ward's irradiance cache) and
+// "light" (light tracing, integrator/light_tracer.h: renders with SplatPath).
 // Throws std::invalid_argument for an unknown name or a missing input.
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs = {});
@@ -64,5 +73,8 @@ const char* const* IntegratorNames();
 bool UsesIrradianceCache(const RenderSettings& settings);
 // Whether the integrator reads photon maps.
 bool UsesPhotonMaps(const RenderSettings& settings);
+// Whether the integrator's paths start on lights and splat onto the film (its render
+// stage is made of splat tasks, and it renders with SplatPath rather than Li).
+bool TracesLightPaths(const RenderSettings& settings);
 
 }  // namespace tessera

@@ -71,10 +71,14 @@ FrameRenderer::FrameRenderer(const Scene& scene, const RenderSettings& settings)
     if (settings.tile_size < 1) throw std::invalid_argument("tile size must be at least 1");
     if (settings.max_depth < 0) throw std::invalid_argument("max depth must not be negative");
     bool known = false;
-    for (const char* const* n = IntegratorNames(); *n; ++n) known |= settings.integrator == *n;
+    std::string names;
+    for (const char* const* n = IntegratorNames(); *n; ++n) {
+        known |= settings.integrator == *n;
+        names += (names.empty() ? "" : ", ") + std::string(*n);
+    }
     if (!known)
         throw std::invalid_argument("unknown integrator '" + settings.integrator +
-                                    "' (known: path, direct, photon, irradiance-cache)");
+                                    "' (known: " + names + ")");
     if (UsesPhotonMaps(settings)) {
         const PhotonOptions& p = settings.photon;
         if (p.global_photons < 0 || p.caustic_photons < 0)
@@ -165,6 +169,10 @@ std::string FrameRenderer::RunTask(int stage, int task_index, const ArtifactSet&
             result = RunIrradianceTask(stage, task_index, artifacts, arena);
             break;
         case StageKind::kRender: {
+            if (s.task_kind == TaskKind::kSplat) {
+                result = EncodeSplatResult(RenderSplatTask(task_index, arena, artifacts));
+                break;
+            }
             TileFilm film = RenderTile(plan_.tiles[task_index], arena, artifacts);
             result = EncodeTileResult(TileResult{task_index, film.Region(), film.Data()});
             // RenderTile counted its own rays.
@@ -173,6 +181,29 @@ std::string FrameRenderer::RunTask(int stage, int task_index, const ArtifactSet&
     }
     rays_ += Scene::ThreadRayCount() - rays_before;
     return result;
+}
+
+SplatResult FrameRenderer::RenderSplatTask(int task_index, ScratchBuffer& arena,
+                                           const ArtifactSet& artifacts) const {
+    SetFloatingPointMode();
+    const int render_stage = plan_.RenderStageIndex();
+    std::unique_ptr<Integrator> integrator =
+        MakeIntegrator(settings_, scene_, Inputs(render_stage, artifacts));
+    std::unique_ptr<IntegratorTaskState> state = integrator->NewTaskState();
+    std::unique_ptr<Sampler> sampler = sampler_->Clone();
+    // Light paths counted per pixel sample: spp of them per stream pixel (camera.h).
+    SplatFilm film(resolution_, *filter_, 1.0f / static_cast<float>(settings_.spp));
+    const PixelBounds band = plan_.SplatBand(task_index);
+    for (int y = band.lo.y; y < band.hi.y; ++y)
+        for (int x = band.lo.x; x < band.hi.x; ++x)
+            for (int i = 0; i < settings_.spp; ++i) {
+                sampler->StartPixelSample(Vec2i(x, y), i);
+                // The path's shutter time is its stream's first dimension.
+                const float time = sampler->Get1D();
+                integrator->SplatPath(*sampler, time, arena, film, state.get());
+                arena.Reset();
+            }
+    return SplatResult{task_index, resolution_, std::move(film.MutableData())};
 }
 
 std::string FrameRenderer::RunPhotonTask(int task_index, ScratchBuffer& arena) const {

@@ -60,6 +60,9 @@ class FrameRenderer {
     std::string RunIrradianceTask(int stage, int task_index, const ArtifactSet& artifacts,
                                   ScratchBuffer& arena) const;
     std::string RunPhotonTask(int task_index, ScratchBuffer& arena) const;
+    // Traces the light paths of splat task `task_index`'s band of sample streams.
+    SplatResult RenderSplatTask(int task_index, ScratchBuffer& arena,
+                                const ArtifactSet& artifacts) const;
 
     const Scene& scene_;
     RenderSettings settings_;

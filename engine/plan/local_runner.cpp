@@ -23,20 +23,26 @@ Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int t
     tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
     std::vector<std::string> results;
     LocalRenderStats local_stats;
+    FrameAssembler assembler(plan);
     for (int s = 0; s < num_stages; ++s) {
         const auto start = std::chrono::steady_clock::now();
         const StagePlan& stage = plan.stages[s];
         const int n = stage.num_tasks;
-        results.assign(n, {});
-        std::mutex progress_mutex;
+        // The render stage's results go to the assembler as they come (it sums splat
+        // buffers in task order as soon as that order allows, so few wait in memory).
+        const bool render = s == plan.RenderStageIndex();
+        results.assign(render ? 0 : n, {});
+        std::mutex mutex;
         int done = 0;
         arena.execute([&] {
             tbb::parallel_for(0, n, [&](int i) {
-                results[i] = renderer.RunTask(s, i, artifacts, arenas.local());
-                if (progress) {
-                    std::lock_guard lock(progress_mutex);
-                    progress(stage, ++done, n);
-                }
+                std::string result = renderer.RunTask(s, i, artifacts, arenas.local());
+                std::lock_guard lock(mutex);
+                if (render)
+                    assembler.AddEncoded(result);
+                else
+                    results[i] = std::move(result);
+                if (progress) progress(stage, ++done, n);
             });
         });
         if (stage.produces_artifact) {
@@ -53,8 +59,6 @@ Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int t
         local_stats.stage_seconds.push_back(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     }
-    FrameAssembler assembler(plan);
-    for (std::string& r : results) assembler.Add(DecodeTileResult(r));
     local_stats.rays = renderer.RaysTraced();
     if (rays_traced) *rays_traced = local_stats.rays;
     if (stats) *stats = std::move(local_stats);

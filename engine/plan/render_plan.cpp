@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -21,6 +23,12 @@ int RenderPlan::StageOffset(int stage) const {
     return n;
 }
 
+PixelBounds RenderPlan::SplatBand(int task) const {
+    const int y0 = std::min(resolution.y, task * splat_rows);
+    const int y1 = std::min(resolution.y, y0 + splat_rows);
+    return PixelBounds{Vec2i(0, y0), Vec2i(resolution.x, y1)};
+}
+
 int RenderPlan::StageIndex(const std::string& name) const {
     for (size_t i = 0; i < stages.size(); ++i)
         if (stages[i].name == name) return static_cast<int>(i);
@@ -29,9 +37,11 @@ int RenderPlan::StageIndex(const std::string& name) const {
 
 RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     if (settings.tile_size < 1) throw std::invalid_argument("tile size must be at least 1");
+    if (settings.spp < 1) throw std::invalid_argument("samples per pixel must be at least 1");
     RenderPlan plan;
     plan.frame = settings.frame;
     plan.resolution = resolution;
+    plan.spp = settings.spp;
     plan.tiles = MakeTiles(resolution, settings.tile_size);
     const float film_radius = FilmRadius(settings.filter);
     for (const PixelBounds& tile : plan.tiles)
@@ -83,13 +93,30 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     render.num_tasks = tiles;
     render.reads = render_reads;
     render.label = "render";
+    if (TracesLightPaths(settings)) {
+        if (settings.light_paths_per_task < 1)
+            throw std::invalid_argument("light paths per task must be at least 1");
+        // Enough tasks for the paths-per-task budget, and at least kMinSplatTasks (or one
+        // per row) so that a local render keeps every thread busy.
+        const int rows = std::max(1, resolution.y);
+        const int64_t paths = int64_t(std::max(1, resolution.x)) * rows * settings.spp;
+        const int64_t tasks = std::max<int64_t>(
+            (paths + settings.light_paths_per_task - 1) / settings.light_paths_per_task,
+            std::min(kMinSplatTasks, rows));
+        plan.splat_rows = static_cast<int>((rows + std::min<int64_t>(tasks, rows) - 1) /
+                                           std::min<int64_t>(tasks, rows));
+        render.task_kind = TaskKind::kSplat;
+        render.num_tasks = (resolution.y + plan.splat_rows - 1) / plan.splat_rows;
+        render.label = "light paths";
+    }
     plan.stages.push_back(render);
     return plan;
 }
 
 namespace {
 
-constexpr uint32_t kMagic = 0x54534c54;  // "TLST"
+constexpr uint32_t kMagic = 0x54534c54;       // "TLST"
+constexpr uint32_t kSplatMagic = 0x54535053;  // "SPST"
 constexpr uint32_t kVersion = 1;
 
 template <typename T>
@@ -155,15 +182,62 @@ TileResult DecodeTileResult(const std::string& bytes) {
     return r;
 }
 
+std::string EncodeSplatResult(const SplatResult& r) {
+    std::string out;
+    out.reserve(24 + r.rgb.size() * sizeof(float));
+    Put<uint32_t>(out, kSplatMagic);
+    Put<uint32_t>(out, kVersion);
+    Put<int32_t>(out, r.task_index);
+    Put<int32_t>(out, r.resolution.x);
+    Put<int32_t>(out, r.resolution.y);
+    out.append(reinterpret_cast<const char*>(r.rgb.data()), r.rgb.size() * sizeof(float));
+    return out;
+}
+
+SplatResult DecodeSplatResult(const std::string& bytes) {
+    size_t at = 0;
+    if (Get<uint32_t>(bytes, &at) != kSplatMagic) throw std::runtime_error("not a splat result");
+    if (uint32_t v = Get<uint32_t>(bytes, &at); v != kVersion)
+        throw std::runtime_error(fmt::format("splat result version {} is not supported", v));
+    SplatResult r;
+    r.task_index = Get<int32_t>(bytes, &at);
+    r.resolution.x = Get<int32_t>(bytes, &at);
+    r.resolution.y = Get<int32_t>(bytes, &at);
+    if (r.resolution.x <= 0 || r.resolution.y <= 0 || r.resolution.x > 1 << 16 ||
+        r.resolution.y > 1 << 16)
+        throw std::runtime_error("splat result has an invalid resolution");
+    const size_t count = size_t(r.resolution.x) * r.resolution.y * 3;
+    if (bytes.size() - at != count * sizeof(float))
+        throw std::runtime_error(fmt::format("splat result holds {} bytes of pixels, expected {}",
+                                             bytes.size() - at, count * sizeof(float)));
+    r.rgb.resize(count);
+    std::memcpy(r.rgb.data(), bytes.data() + at, count * sizeof(float));
+    return r;
+}
+
 FrameAssembler::FrameAssembler(const RenderPlan& plan)
-    : plan_(plan), results_(plan.tiles.size()), present_(plan.tiles.size(), false) {}
+    : plan_(plan),
+      splats_(plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat),
+      present_(plan.stages.at(plan.RenderStageIndex()).num_tasks, false) {
+    if (splats_)
+        splat_sum_.assign(size_t(plan.resolution.x) * plan.resolution.y * 3, 0.0);
+    else
+        results_.resize(present_.size());
+}
+
+void FrameAssembler::Claim(int task_index) {
+    const int n = static_cast<int>(present_.size());
+    if (task_index < 0 || task_index >= n)
+        throw std::invalid_argument(fmt::format("render result {} is out of range", task_index));
+    if (present_[task_index])
+        throw std::invalid_argument(fmt::format("render result {} arrived twice", task_index));
+}
 
 void FrameAssembler::Add(TileResult r) {
-    int n = static_cast<int>(results_.size());
-    if (r.task_index < 0 || r.task_index >= n)
-        throw std::invalid_argument(fmt::format("tile result {} is out of range", r.task_index));
-    if (present_[r.task_index])
-        throw std::invalid_argument(fmt::format("tile result {} arrived twice", r.task_index));
+    if (splats_)
+        throw std::invalid_argument(
+            fmt::format("tile result {} for a render stage of splat tasks", r.task_index));
+    Claim(r.task_index);
     if (r.region != plan_.tile_regions[r.task_index])
         throw std::invalid_argument(
             fmt::format("tile result {} is not its planned region", r.task_index));
@@ -172,12 +246,61 @@ void FrameAssembler::Add(TileResult r) {
     ++received_;
 }
 
+void FrameAssembler::Add(SplatResult r) {
+    if (!splats_)
+        throw std::invalid_argument(
+            fmt::format("splat result {} for a render stage of tiles", r.task_index));
+    Claim(r.task_index);
+    if (r.resolution != plan_.resolution)
+        throw std::invalid_argument(fmt::format("splat result {} is {}x{}, the frame {}x{}",
+                                                r.task_index, r.resolution.x, r.resolution.y,
+                                                plan_.resolution.x, plan_.resolution.y));
+    present_[r.task_index] = true;
+    pending_.emplace(r.task_index, std::move(r));
+    ++received_;
+    for (auto it = pending_.begin(); it != pending_.end() && it->first == next_splat_;
+         it = pending_.erase(it), ++next_splat_)
+        for (size_t i = 0; i < splat_sum_.size(); ++i) splat_sum_[i] += it->second.rgb[i];
+}
+
+void FrameAssembler::AddEncoded(const std::string& bytes) {
+    if (splats_)
+        Add(DecodeSplatResult(bytes));
+    else
+        Add(DecodeTileResult(bytes));
+}
+
 Image FrameAssembler::Assemble() const {
     if (!Complete())
-        throw std::logic_error(fmt::format("frame has {} of {} tiles", received_, results_.size()));
+        throw std::logic_error(
+            fmt::format("frame has {} of {} render results", received_, present_.size()));
     Film film(plan_.resolution);
     for (const TileResult& r : results_) film.Merge(r.region, r.data);
-    return film.Resolve();
+    Image image = film.Resolve();
+    if (splats_) {
+        // The sum of the splat buffers in task order, in double; every pixel is rendered.
+        const size_t pixels = size_t(plan_.resolution.x) * plan_.resolution.y;
+        const std::vector<double>& sum = splat_sum_;
+        const int n = image.NumChannels();
+        for (size_t p = 0; p < pixels; ++p) {
+            float* out = &image.pixels[p * n];
+            for (int c = 0; c < 3; ++c) out[c] += static_cast<float>(sum[p * 3 + c]);
+            out[3] = 1;
+        }
+    }
+    return image;
+}
+
+std::string FirstNonFiniteValue(const RenderPlan& plan, const std::string& bytes) {
+    const bool splats = plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat;
+    const std::vector<float> data =
+        splats ? DecodeSplatResult(bytes).rgb : DecodeTileResult(bytes).data;
+    const int channels = splats ? 3 : TileFilm::kChannels;
+    for (size_t i = 0; i < data.size(); ++i)
+        if (!std::isfinite(data[i]))
+            return fmt::format("value {} (pixel {}, channel {}) is {}", i, i / channels,
+                               i % channels, data[i]);
+    return {};
 }
 
 ImageMetadata FrameMetadata(const RenderSettings& s, double render_seconds) {

@@ -14,8 +14,19 @@
 //   path, direct        render
 //   irradiance-cache    irradiance-1 .. irradiance-P, render
 //   photon              photons [, irradiance-1 .. irradiance-P], render
+//   light               render (splat tasks: bands of light-path streams)
+//
+// A splat task traces the light paths of a band of image rows' sample streams: stream
+// (x, y) with sample index i < spp names the path's random numbers (as a camera sample's
+// do), not where it lands; its result is a whole-frame RGB buffer already in pixel units,
+// and the frame is the sum of the splat buffers in task order. A band holds at most about
+// settings.light_paths_per_task paths (2^20 by default), and a frame has at least
+// kMinSplatTasks bands (or one per row), so that a local render keeps its threads busy;
+// the task count does not depend on the tile size. The assembler sums the buffers as they
+// arrive in task order, so that it holds only those that arrive early.
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -51,9 +62,17 @@ struct StagePlan {
     std::string label;
 };
 
+// The fewest splat tasks a frame is split into (fewer only for images of fewer rows).
+inline constexpr int kMinSplatTasks = 16;
+
 struct RenderPlan {
     int frame = 0;
     Vec2i resolution;
+    int spp = 1;
+    // Splat render stages: image rows of sample streams per task.
+    int splat_rows = 0;
+    // The streams of splat task `task`: whole rows [lo.y, hi.y) of the image.
+    PixelBounds SplatBand(int task) const;
     std::vector<PixelBounds> tiles;  // the tile stages' tasks, in index order
     // The film region each render task's result must cover exactly: its tile and the
     // filter's apron, clipped to the image.
@@ -83,25 +102,56 @@ struct TileResult {
 std::string EncodeTileResult(const TileResult& result);
 TileResult DecodeTileResult(const std::string& bytes);
 
-// Sums tile results into a film in task-index order, whatever order they arrive in,
-// so that every runner produces the same bits.
+// The result of one splat task: the whole frame's RGB, in pixel units (the splat film's
+// scale applied), to be added to the image.
+struct SplatResult {
+    int task_index = 0;
+    Vec2i resolution;
+    std::vector<float> rgb;  // width * height * 3, row-major
+};
+
+// Same conventions as the tile result's encoding; throws std::runtime_error on anything
+// malformed.
+std::string EncodeSplatResult(const SplatResult& result);
+SplatResult DecodeSplatResult(const std::string& bytes);
+
+// Sums the render stage's results (tile films, or splat buffers) in task-index order,
+// whatever order they arrive in, so that every runner produces the same bits.
 class FrameAssembler {
   public:
     explicit FrameAssembler(const RenderPlan& plan);
-    // Throws std::invalid_argument for an index out of range, a duplicate, or a region
-    // that is not the planned tile's region (tile and apron).
+    // Throws std::invalid_argument for an index out of range, a duplicate, a region that
+    // is not the planned tile's region (tile and apron), or a result of the other kind.
     void Add(TileResult result);
-    bool Complete() const { return received_ == static_cast<int>(results_.size()); }
+    // A splat buffer; throws std::invalid_argument as Add does, or for another resolution.
+    void Add(SplatResult result);
+    // Decodes a render-stage result by the stage's task kind and adds it. Throws
+    // std::runtime_error for malformed bytes, std::invalid_argument as Add does.
+    void AddEncoded(const std::string& bytes);
+    bool Complete() const { return received_ == static_cast<int>(present_.size()); }
     int Received() const { return received_; }
     // Requires Complete().
     Image Assemble() const;
 
   private:
+    void Claim(int task_index);
+
     RenderPlan plan_;
+    bool splats_;  // the render stage's tasks are splat tasks
     std::vector<TileResult> results_;
+    // Splat buffers: summed in task order as that order allows; those that arrive before
+    // their predecessors wait in pending_.
+    std::vector<double> splat_sum_;
+    std::map<int, SplatResult> pending_;
+    int next_splat_ = 0;
     std::vector<bool> present_;
     int received_ = 0;
 };
+
+// Checks that a render-stage result's values are all finite; returns where the first
+// one that is not lies ("value 12 (pixel 4, channel 0) is nan"), or an empty string.
+// Throws std::runtime_error for malformed bytes.
+std::string FirstNonFiniteValue(const RenderPlan& plan, const std::string& bytes);
 
 // Header attributes every runner writes into a frame's EXR.
 ImageMetadata FrameMetadata(const RenderSettings& settings, double render_seconds);

@@ -111,6 +111,9 @@ struct RenderSettings {
     TimeSampler time_sampler = TimeSampler::kStratified;
     uint64_t seed = 0;
     int tile_size = 32;
+    // Integrators that trace light paths (render_plan.h): paths per splat task, rounded to
+    // whole image rows of sample streams.
+    int light_paths_per_task = 1 << 20;
     FilterSettings filter;
     int frame = 0;
     Vec2i resolution{512, 512};
@@ -122,7 +125,7 @@ struct RenderSettings {
 // Command-line values that replace the scene file's.
 struct RenderOverrides {
     std::optional<std::string> integrator;
-    std::optional<int> spp, max_depth, tile_size, frame, width, height;
+    std::optional<int> spp, max_depth, tile_size, frame, width, height, light_paths_per_task;
     std::optional<uint64_t> seed;
     std::optional<SamplerType> sampler;
     std::optional<TimeSampler> time_sampler;

@@ -40,6 +40,7 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("time_sampler", TimeSamplerName(s.time_sampler));
     put("seed", s.seed);
     put("tile_size", s.tile_size);
+    put("light_paths_per_task", s.light_paths_per_task);
     put("filter.type", static_cast<int>(s.filter.type));
     put("filter.radius", s.filter.radius);
     put("filter.gaussian_sigma", s.filter.gaussian_sigma);
@@ -102,6 +103,7 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
         s.seed = Parse<uint64_t>(k, v);
     };
     set["tile_size"] = i(s.tile_size);
+    set["light_paths_per_task"] = i(s.light_paths_per_task);
     set["filter.type"] = [&](const std::string& k, const std::string& v) {
         int t = Parse<int>(k, v);
         if (t < 0 || t > static_cast<int>(FilterType::kTent))

@@ -93,6 +93,17 @@ void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const st
                 return;
             }
             case StageKind::kRender: {
+                if (plan.stages[stage].task_kind == TaskKind::kSplat) {
+                    SplatResult r = DecodeSplatResult(bytes);
+                    if (r.task_index != task_index)
+                        throw std::invalid_argument(fmt::format(
+                            "the result is splat task {}, not {}", r.task_index, task_index));
+                    if (r.resolution != plan.resolution)
+                        throw std::invalid_argument(fmt::format(
+                            "the splat result is {}x{}, the frame {}x{}", r.resolution.x,
+                            r.resolution.y, plan.resolution.x, plan.resolution.y));
+                    return;
+                }
                 TileResult r = DecodeTileResult(bytes);
                 if (r.task_index != task_index)
                     throw std::invalid_argument(

@@ -418,6 +418,7 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     ranged(o.spp, 1, 1 << 24, "spp", &s.spp);
     ranged(o.max_depth, 0, 100000, "max_depth", &s.max_depth);
     ranged(o.tile_size, 1, 65536, "tile_size", &s.tile_size);
+    ranged(o.light_paths_per_task, 1, 1 << 30, "light_paths_per_task", &s.light_paths_per_task);
     ranged(o.frame, 0, 1 << 30, "frame", &s.frame);
     ranged(o.width, 1, 65536, "width", &s.resolution.x);
     ranged(o.height, 1, 65536, "height", &s.resolution.y);

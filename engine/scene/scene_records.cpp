@@ -21,7 +21,8 @@
 namespace tessera {
 
 const std::vector<std::string>& KnownIntegrators() {
-    static const std::vector<std::string> kNames = {"path", "direct", "photon", "irradiance-cache"};
+    static const std::vector<std::string> kNames = {"path", "direct", "photon", "irradiance-cache",
+                                                    "light"};
     return kNames;
 }
 
@@ -276,6 +277,7 @@ RenderSettings ParseRender(const JsonValue& v) {
     }
     if (auto s = o.Get("seed")) r.seed = s->AsUint64();
     if (auto t = o.Get("tile_size")) r.tile_size = int(t->AsInt(1, 65536));
+    if (auto t = o.Get("light_paths_per_task")) r.light_paths_per_task = int(t->AsInt(1, 1 << 30));
     if (auto f = o.Get("frame")) r.frame = int(f->AsInt(0, 1 << 30));
     if (auto f = o.Get("filter")) r.filter = ParseFilter(*f);
     if (auto p = o.Get("photon")) r.photon = ParsePhoton(*p);

@@ -1,0 +1,352 @@
+// The light-tracing integrator ("light"): paths from the lights, splatted where the camera
+// sees their vertices. Its images are checked against closed forms (the camera's importance
+// end to end, emitters seen directly, interreflection) and against the path tracer, region
+// by region, on scenes where the two differ if the adjoint transport is wrong: shading
+// normals and refraction into a medium that holds the camera.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "camera/perspective.h"
+#include "light/lights.h"
+#include "material/materials.h"
+#include "plan/local_runner.h"
+#include "scene/scene.h"
+#include "scene_helpers.h"
+
+namespace tessera {
+namespace {
+
+using test::Diffuse;
+using test::SetCamera;
+
+RenderSettings Settings(const std::string& integrator, int spp, uint64_t seed = 3) {
+    return test::Settings(integrator, spp, seed);
+}
+
+bool Verbose() { return std::getenv("TESSERA_LIGHT_TRACER_VERBOSE") != nullptr; }
+
+struct Estimate {
+    double mean = 0, se = 0;
+    size_t n = 0;
+};
+
+// Mean and standard error of independent values.
+Estimate MeanOf(const std::vector<double>& v) {
+    Estimate e;
+    e.n = v.size();
+    if (v.empty()) return e;
+    for (double x : v) e.mean += x;
+    e.mean /= double(v.size());
+    double var = 0;
+    for (double x : v) var += (x - e.mean) * (x - e.mean);
+    if (v.size() > 1) e.se = std::sqrt(var / double(v.size() - 1) / double(v.size()));
+    return e;
+}
+
+// The hit of the ray through raster position p, if any.
+bool CameraHit(const Scene& scene, Vec2 p, SurfaceInteraction* si) {
+    return scene.Intersect(scene.GetCamera().GenerateRay(CameraSample{p, Vec2(0.5f, 0.5f), 0}), si);
+}
+
+// Pixels whose whole area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees a
+// surface of `material`: where a light tracer and a path tracer must agree. Elsewhere the
+// camera sees specular surfaces (which light paths cannot reach through a pinhole) or
+// emitters directly.
+std::vector<bool> PixelsSeeing(const Scene& scene, const Material* material) {
+    const Vec2i res = scene.GetCamera().Resolution();
+    std::vector<bool> mask(size_t(res.x) * res.y, true);
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x)
+            for (int j = 0; j < 8 && mask[y * res.x + x]; ++j)
+                for (int i = 0; i < 8; ++i) {
+                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
+                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
+                    SurfaceInteraction si;
+                    if (!CameraHit(scene, p, &si) || si.material != material) {
+                        mask[y * res.x + x] = false;
+                        break;
+                    }
+                }
+    return mask;
+}
+
+// Light tracing against path tracing, block by block (block x block pixels, only the
+// pixels in `mask`): the difference of the two images, pixel by pixel, has mean zero, and
+// its pixels are independent, so each block's mean difference is compared with its
+// standard error: within max_z of them (3.5 keeps the chance that one of 16 blocks fails
+// by chance near 1%), and the whole image's within 3. The test must also be able to see a bias of
+// `resolve` (relative): each block's standard error is at most resolve / 4 of its mean. Returns the
+// largest |z|.
+double ExpectBlocksAgree(const Image& light, const Image& path, const std::vector<bool>& mask,
+                         int block, double max_z, double resolve) {
+    EXPECT_EQ(light.width, path.width);
+    EXPECT_EQ(light.height, path.height);
+    double worst = 0;
+    int blocks = 0;
+    std::vector<double> all_diff, all_path;
+    for (int by = 0; by + block <= light.height; by += block)
+        for (int bx = 0; bx + block <= light.width; bx += block) {
+            std::vector<double> diff, reference;
+            for (int y = by; y < by + block; ++y)
+                for (int x = bx; x < bx + block; ++x) {
+                    if (!mask[y * light.width + x]) continue;
+                    for (int c = 0; c < 3; ++c) {
+                        diff.push_back(light.At(x, y, c) - path.At(x, y, c));
+                        reference.push_back(path.At(x, y, c));
+                    }
+                }
+            // Blocks mostly outside the mask say little; their pixels still count below.
+            all_diff.insert(all_diff.end(), diff.begin(), diff.end());
+            all_path.insert(all_path.end(), reference.begin(), reference.end());
+            if (diff.size() < size_t(3 * block * block / 2)) continue;
+            ++blocks;
+            const Estimate d = MeanOf(diff);
+            const double ref = MeanOf(reference).mean;
+            const double z = d.se > 0 ? d.mean / d.se : 0;
+            worst = std::max(worst, std::abs(z));
+            if (Verbose())
+                std::printf(
+                    "    block (%2d,%2d): path %.4f, light - path %+.4f (%+.2f%%), se %.2f%%, "
+                    "z %+.2f\n",
+                    bx, by, ref, d.mean, 100 * d.mean / ref, 100 * d.se / ref, z);
+            EXPECT_LT(std::abs(z), max_z) << "block (" << bx << ", " << by << "): path " << ref
+                                          << ", light - path " << d.mean << ", se " << d.se;
+            EXPECT_LT(4 * d.se, resolve * ref)
+                << "block (" << bx << ", " << by << ") too noisy to resolve " << resolve;
+        }
+    EXPECT_GE(blocks, 4) << "too few blocks inside the mask";
+    const Estimate total = MeanOf(all_diff);
+    const double ref = MeanOf(all_path).mean;
+    if (Verbose())
+        std::printf(
+            "    all %zu values: light - path %+.3f%%, se %.3f%%, %d blocks, worst |z| %.2f\n",
+            total.n, 100 * total.mean / ref, 100 * total.se / ref, blocks, worst);
+    testing::Test::RecordProperty("relative_difference", std::to_string(total.mean / ref));
+    testing::Test::RecordProperty("relative_standard_error", std::to_string(total.se / ref));
+    testing::Test::RecordProperty("worst_block_z", std::to_string(worst));
+    EXPECT_LT(std::abs(total.mean), 3 * total.se) << "whole image";
+    return worst;
+}
+
+// A diffuse floor under a point light, seen through a wide pinhole camera: each pixel is
+// the average over its area of rho / pi * I cos(theta) / d^2, and with a box filter one
+// pixel wide every light path's splat lands in exactly one pixel. A wrong importance
+// (its normalisation, its cos^n falloff toward the image's corners, the pdf's conversion
+// to solid angle) shows as a constant or a radial error.
+TEST(LightTracerImportance, DiffuseFloorUnderPointLightMatchesTheClosedForm) {
+    constexpr float kRho = 0.5f, kIntensity = 4;
+    const Vec3 light(0.3f, 2.0f, 0.3f);
+    constexpr int kSize = 16;
+    Scene scene;
+    scene.AddMesh(MakeQuad(Vec3(-20, 0, -20), Vec3(-20, 0, 20), Vec3(20, 0, 20), Vec3(20, 0, -20)),
+                  Diffuse(scene, kRho));
+    scene.AddLight(MakePointLight(light, Rgb(kIntensity)));
+    // Looking down at 45 degrees: the whole image sees the floor, the light is out of view.
+    SetCamera(scene, Vec3(0, 1.5f, -1.2f), Vec3(0, 0, 0.3f), 60, kSize);
+    scene.Commit();
+    Image image = RenderFrameLocal(scene, Settings("light", 4096), 2);
+    ASSERT_EQ(image.width, kSize);
+
+    // The closed form averaged over each pixel (16 x 16 points).
+    auto radiance = [&](Vec3 p) {
+        const double d2 = DistanceSquared(light, p), cos_theta = light.y / std::sqrt(d2);
+        return kRho / kPi * kIntensity * cos_theta / d2;
+    };
+    std::vector<double> ratio;
+    double worst_corner = 0;
+    for (int y = 0; y < kSize; ++y)
+        for (int x = 0; x < kSize; ++x) {
+            double expected = 0;
+            for (int j = 0; j < 16; ++j)
+                for (int i = 0; i < 16; ++i) {
+                    SurfaceInteraction si;
+                    ASSERT_TRUE(
+                        CameraHit(scene, Vec2(x + (i + 0.5f) / 16, y + (j + 0.5f) / 16), &si));
+                    expected += radiance(si.p) / 256;
+                }
+            for (int c = 0; c < 3; ++c) ratio.push_back(image.At(x, y, c) / expected);
+            if ((x == 0 || x == kSize - 1) && (y == 0 || y == kSize - 1))
+                worst_corner = std::max(worst_corner, std::abs(image.At(x, y, 0) / expected - 1));
+        }
+    const Estimate all = MeanOf(ratio);
+    if (Verbose())
+        std::printf("    image / closed form: %.5f, se %.5f; worst corner pixel off by %.3f\n",
+                    all.mean, all.se, worst_corner);
+    RecordProperty("ratio", std::to_string(all.mean));
+    RecordProperty("ratio_standard_error", std::to_string(all.se));
+    EXPECT_NEAR(all.mean, 1.0, 4 * all.se);
+    EXPECT_LT(4 * all.se, 0.01) << "too noisy to resolve a 1% error";
+    // Quadrants and the ring of border pixels against the centre: a falloff error is radial.
+    for (int qy = 0; qy < 2; ++qy)
+        for (int qx = 0; qx < 2; ++qx) {
+            std::vector<double> q;
+            for (int y = qy * kSize / 2; y < (qy + 1) * kSize / 2; ++y)
+                for (int x = qx * kSize / 2; x < (qx + 1) * kSize / 2; ++x)
+                    for (int c = 0; c < 3; ++c) q.push_back(ratio[(y * kSize + x) * 3 + c]);
+            const Estimate e = MeanOf(q);
+            EXPECT_NEAR(e.mean, 1.0, 4 * e.se) << "quadrant " << qx << ", " << qy;
+        }
+    std::vector<double> border;
+    for (int y = 0; y < kSize; ++y)
+        for (int x = 0; x < kSize; ++x)
+            if (x == 0 || y == 0 || x == kSize - 1 || y == kSize - 1)
+                for (int c = 0; c < 3; ++c) border.push_back(ratio[(y * kSize + x) * 3 + c]);
+    const Estimate b = MeanOf(border);
+    EXPECT_NEAR(b.mean, 1.0, 4 * b.se) << "border pixels";
+    EXPECT_LT(4 * b.se, 0.05);
+}
+
+// A small Cornell-like box: white room, a coloured block and sphere, a square light under
+// the ceiling. Light and path tracing agree on every 8 x 8 block, the light itself left out
+// (light tracing reaches it only through its own point's connection to the lens).
+TEST(LightTracerVsPath, CornellBoxAgreesBlockByBlock) {
+    Scene scene;
+    const Material* white = Diffuse(scene, 0.7f);
+    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), white);  // seen from inside
+    const Material* red =
+        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.7f, 0.1f, 0.1f))));
+    const Material* green =
+        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.1f, 0.6f, 0.1f))));
+    scene.AddMesh(MakeBox(Vec3(-0.7f, -1, 0.1f), Vec3(-0.2f, 0.2f, 0.6f)), green);
+    scene.AddSphere(Vec3(0.45f, -0.65f, -0.1f), 0.35f, red);
+    Emission e{Rgb(6), false};
+    const Material* lamp = Diffuse(scene, 0);
+    scene.AddMesh(MakeQuad(Vec3(-0.3f, 0.98f, -0.3f), Vec3(0.3f, 0.98f, -0.3f),
+                           Vec3(0.3f, 0.98f, 0.3f), Vec3(-0.3f, 0.98f, 0.3f)),
+                  lamp, &e);
+    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, 32);
+    scene.Commit();
+    // The pixels that see the lamp, even in part, are left out.
+    std::vector<bool> mask(32 * 32, true);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+            for (int j = 0; j < 8; ++j)
+                for (int i = 0; i < 8; ++i) {
+                    SurfaceInteraction si;
+                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
+                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
+                    if (CameraHit(scene, p, &si) && si.material == lamp) mask[y * 32 + x] = false;
+                }
+    const Image path = RenderFrameLocal(scene, Settings("path", 256, 11), 2);
+    const Image light = RenderFrameLocal(scene, Settings("light", 512, 12), 2);
+    ExpectBlocksAgree(light, path, mask, 8, 3.5, 0.1);
+}
+
+// Light refracted into water that holds the camera and a floor whose shading normals are
+// tilted away from its geometric normal (vertex normals of a flat grid). Radiance grows by
+// eta^2 entering water, importance does not: a light tracer that scaled by 1 / eta^2 would
+// be 1.77 times too dark; one without the adjoint shading-normal correction would be off
+// wherever the shading and geometric cosines differ.
+TEST(LightTracerVsPath, UnderwaterFloorWithShadingNormalsAgrees) {
+    Scene scene;
+    // The water fills a box with outward faces around the camera and the floor.
+    scene.AddMesh(MakeBox(Vec3(-2, -1, -2), Vec3(2, 1, 2)),
+                  scene.AddMaterial(MakeDielectricMaterial(1.33f)));
+    // A flat 4 x 4 grid at y = 0 whose vertex normals lean outward from the centre.
+    TriangleMesh floor;
+    constexpr int kN = 4;
+    for (int j = 0; j <= kN; ++j)
+        for (int i = 0; i <= kN; ++i) {
+            const float x = -1.9f + 3.8f * i / kN, z = -1.9f + 3.8f * j / kN;
+            floor.positions.push_back(Vec3(x, 0, z));
+            floor.normals.push_back(Normalize(Vec3(0.35f * x, 1, 0.25f * z)));
+        }
+    for (int j = 0; j < kN; ++j)
+        for (int i = 0; i < kN; ++i) {
+            const uint32_t a = j * (kN + 1) + i, b = a + 1, c = a + kN + 1, d = c + 1;
+            // Counter-clockwise seen from above: the geometric normal faces +y.
+            for (uint32_t v : {a, c, d, a, d, b}) floor.indices.push_back(v);
+        }
+    const Material* floor_material = Diffuse(scene, 0.6f);
+    scene.AddMesh(floor, floor_material);
+    scene.AddLight(MakeConstantEnvironmentLight(Rgb(1)));
+    SetCamera(scene, Vec3(0.2f, 0.7f, -1.6f), Vec3(0, 0, 0.4f), 60, 24);
+    scene.Commit();
+    // The shading normals do lean: at the grid's corners by over 20 degrees.
+    {
+        SurfaceInteraction si;
+        ASSERT_TRUE(scene.Intersect(Ray{Vec3(1.7f, 0.5f, 1.7f), Vec3(0, -1, 0), 0}, &si));
+        EXPECT_LT(Dot(si.shading.n, si.ng), std::cos(Radians(20)));
+    }
+    const std::vector<bool> mask = PixelsSeeing(scene, floor_material);
+    const Image path = RenderFrameLocal(scene, Settings("path", 1024, 21), 2);
+    const Image light = RenderFrameLocal(scene, Settings("light", 2048, 22), 2);
+    ExpectBlocksAgree(light, path, mask, 6, 3.5, 0.1);
+}
+
+// Mean within four standard errors of `expected` (every pixel an independent estimate),
+// and the test able to see a 2% error.
+void ExpectUniformImage(const Image& image, double expected) {
+    std::vector<double> v;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x)
+            for (int c = 0; c < 3; ++c) v.push_back(image.At(x, y, c));
+    const Estimate e = MeanOf(v);
+    if (Verbose()) std::printf("    mean %.5f, se %.5f (expected %.5f)\n", e.mean, e.se, expected);
+    EXPECT_NEAR(e.mean, expected, 4 * e.se);
+    EXPECT_LT(4 * e.se, 0.02 * expected);
+}
+
+// Albedo 1/2, point light of intensity pi at the centre of a unit sphere: radiance 1/2
+// direct everywhere, and the interior multiplies it by 1 / (1 - 1/2).
+TEST(LightTracerKnownAnswer, InsideDiffuseSphereWithPointLight) {
+    Scene scene;
+    scene.AddSphere(Vec3(0, 0, 0), 1, Diffuse(scene, 0.5f));
+    scene.AddLight(MakePointLight(Vec3(0, 0, 0), Rgb(kPi)));
+    SetCamera(scene, Vec3(0.1f, -0.2f, 0.3f), Vec3(0.4f, 0.2f, 1), 90, 16);
+    scene.Commit();
+    ExpectUniformImage(RenderFrameLocal(scene, Settings("light", 256), 2), 1.0);
+}
+
+// Emission 1/2 (both sides) and albedo 1/2: every pixel sees the emitter directly (the
+// light's own points connected to the lens) plus its interreflection, 1 in all.
+TEST(LightTracerKnownAnswer, InsideEmissiveDiffuseSphere) {
+    Scene scene;
+    Emission e{Rgb(0.5f), true};
+    scene.AddSphere(Vec3(0, 0, 0), 1, Diffuse(scene, 0.5f), &e);
+    SetCamera(scene, Vec3(0.1f, 0, 0), Vec3(0, 1, 0.2f), 90, 16);
+    scene.Commit();
+    ExpectUniformImage(RenderFrameLocal(scene, Settings("light", 256), 2), 1.0);
+    // Without bounces, only the emitter seen directly: 1/2.
+    RenderSettings direct = Settings("light", 1024);
+    direct.max_depth = 0;
+    ExpectUniformImage(RenderFrameLocal(scene, direct, 2), 0.5);
+}
+
+// Light paths are keyed by their sample streams: the thread count changes no bit, the
+// seed changes the image.
+TEST(LightTracerDeterminism, ThreadCountLeavesTheImageBitIdentical) {
+    Scene scene;
+    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), Diffuse(scene, 0.7f));
+    scene.AddSphere(Vec3(0.3f, -0.6f, 0.2f), 0.35f,
+                    scene.AddMaterial(MakeDielectricMaterial(1.5f)));
+    Emission e{Rgb(4), true};
+    scene.AddSphere(Vec3(-0.4f, 0.7f, 0), 0.15f, Diffuse(scene, 0), &e);
+    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, 24);
+    scene.Commit();
+    RenderSettings s = Settings("light", 4, 5);
+    const Image a = RenderFrameLocal(scene, s, 2);
+    const Image b = RenderFrameLocal(scene, s, 1);
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+    double sum = 0;
+    for (float v : a.pixels) {
+        ASSERT_TRUE(std::isfinite(v));
+        sum += v;
+    }
+    EXPECT_GT(sum, 0);
+    s.seed = 6;
+    const Image c = RenderFrameLocal(scene, s, 2);
+    EXPECT_NE(std::memcmp(a.pixels.data(), c.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+}
+
+}  // namespace
+}  // namespace tessera
