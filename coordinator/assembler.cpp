@@ -21,7 +21,7 @@ namespace {
 // them as one UnreadableResults.
 void ReadResults(const std::vector<std::pair<int, std::string>>& results,
                  const std::vector<int>& completions, BlobStore& blobs, const char* what,
-                 const std::function<void(int index, std::string bytes)>& use) {
+                 const std::function<void(int index, std::string bytes)>& use, int stage = -1) {
     std::vector<std::pair<int, int>> unreadable;
     std::string first_error;
     for (size_t i = 0; i < results.size(); ++i) {
@@ -34,7 +34,7 @@ void ReadResults(const std::vector<std::pair<int, std::string>>& results,
             unreadable.emplace_back(index, i < completions.size() ? completions[i] : 0);
         }
     }
-    if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error);
+    if (!unreadable.empty()) throw UnreadableResults(std::move(unreadable), first_error, stage);
 }
 
 // Writes one image file through `write` (OpenImageIO, which reports failures as text and
@@ -76,10 +76,11 @@ std::string FramePath(const std::string& output_dir, const std::string& job_id,
 }
 
 UnreadableResults::UnreadableResults(std::vector<std::pair<int, int>> tasks,
-                                     const std::string& first_error)
+                                     const std::string& first_error, int stage)
     : std::runtime_error(
           fmt::format("{} task result(s) unreadable, first: {}", tasks.size(), first_error)),
-      tasks_(std::move(tasks)) {}
+      tasks_(std::move(tasks)),
+      stage_(stage) {}
 
 std::string MergeStage(const StageMergeInput& in, BlobStore& blobs) {
     const StagePlan& stage = in.plan->stages.at(in.stage);
@@ -117,6 +118,27 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                                              in.results.size(), tiles));
 
     FrameAssembler assembler(plan);
+    // Earlier stages that add to the frame (their tasks run beside the render stage's).
+    for (const FrameAssemblyInput::Contribution& c : in.contributions) {
+        if (c.stage < 0 || c.stage >= static_cast<int>(plan.stages.size()) ||
+            plan.stages[c.stage].produces_artifact)
+            throw std::runtime_error(
+                fmt::format("stage {} adds nothing to frame {}", c.stage, in.frame));
+        if (static_cast<int>(c.results.size()) != plan.stages[c.stage].num_tasks)
+            throw std::runtime_error(
+                fmt::format("frame {} has {} {} results, its plan {}", in.frame, c.results.size(),
+                            plan.stages[c.stage].name, plan.stages[c.stage].num_tasks));
+        ReadResults(
+            c.results, c.completions, blobs, "splat task",
+            [&](int index, std::string bytes) {
+                SplatResult result = DecodeSplatResult(bytes);
+                if (result.task_index != index)
+                    throw std::runtime_error(
+                        fmt::format("the blob holds splat task {}", result.task_index));
+                assembler.Add(c.stage, std::move(result));
+            },
+            c.stage);
+    }
     const bool splats = plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat;
     ReadResults(
         in.results, in.completions, blobs, splats ? "splat task" : "tile",

@@ -28,12 +28,16 @@ std::string FramePath(const std::string& output_dir, const std::string& job_id,
 // Task results that could not be read back (missing or corrupt blobs).
 class UnreadableResults : public std::runtime_error {
   public:
-    // `tasks`: (task index in its stage, its completion count when read).
-    UnreadableResults(std::vector<std::pair<int, int>> tasks, const std::string& first_error);
+    // `tasks`: (task index in its stage, its completion count when read); `stage`: the
+    // stage's index in the plan, -1 when the reader does not know it (the caller does).
+    UnreadableResults(std::vector<std::pair<int, int>> tasks, const std::string& first_error,
+                      int stage = -1);
     const std::vector<std::pair<int, int>>& Tasks() const { return tasks_; }
+    int Stage() const { return stage_; }
 
   private:
     std::vector<std::pair<int, int>> tasks_;
+    int stage_;
 };
 
 // Merges an artifact stage's results into the stage's artifact (bytes). Throws

@@ -235,8 +235,9 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
             fmt::format("{} is not a result of task {} ({} task {} of {} frame {}): {}", what,
                         task_id, stage, check.task_index, check.job_id, check.frame, e.what()));
     }
-    if (check.stage == check.plan->RenderStageIndex()) {
-        if (const std::string bad = FirstNonFiniteValue(*check.plan, bytes); !bad.empty()) {
+    if (!check.plan->stages[check.stage].produces_artifact) {
+        if (const std::string bad = FirstNonFiniteValue(*check.plan, check.stage, bytes);
+            !bad.empty()) {
             const std::string message =
                 fmt::format("{} of task {} ({} task {} of {} frame {}) has a non-finite value: {}",
                             what, task_id, stage, check.task_index, check.job_id, check.frame, bad);

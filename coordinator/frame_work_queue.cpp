@@ -180,7 +180,8 @@ void FrameWorkQueue::Assemble(const std::string& job_id, int frame) {
     } catch (const UnreadableResults& e) {
         spdlog::warn("job {} frame {}: {}; rendering those tiles again", job_id, frame, e.what());
         try {
-            scheduler_.RequeueDoneTasks(job_id, frame, input.render_stage, e.Tasks());
+            scheduler_.RequeueDoneTasks(job_id, frame,
+                                        e.Stage() >= 0 ? e.Stage() : input.render_stage, e.Tasks());
         } catch (const NoSpaceError&) {
             throw;
         } catch (const std::exception& e2) {

@@ -480,7 +480,7 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
                 spdlog::info("job {} frame {}: all {} tasks of {} done; merging", job_id,
                              task.frame, stage.num_tasks, stage.name);
                 events.push_back({Event::kStageReady, job_id, "", task.frame, task.stage_index});
-            } else {
+            } else if (FrameStagesDone(task.job_id, task.frame, *info->plan)) {
                 spdlog::info("job {} frame {}: all {} tasks done; assembling", job_id, task.frame,
                              info->plan->TotalTasks());
                 events.push_back({Event::kFrameReady, job_id, "", task.frame});
@@ -731,6 +731,14 @@ v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
     return status;
 }
 
+bool Scheduler::FrameStagesDone(int64_t job_id, int frame, const RenderPlan& plan) {
+    for (int stage : plan.FrameStages()) {
+        const std::optional<StageRow> row = store_.GetStage(job_id, frame, stage);
+        if (!row || row->tasks_done != row->num_tasks) return false;
+    }
+    return true;
+}
+
 FrameAssemblyInput Scheduler::GetAssemblyInput(const std::string& job_id, int frame) {
     const int64_t id = ParseJobId(job_id);
     std::lock_guard lock(mu_);
@@ -754,6 +762,17 @@ FrameAssemblyInput Scheduler::GetAssemblyInput(const std::string& job_id, int fr
                    fmt::format("{} frame {} has no render stage", job_id, frame));
     in.render_stage = render->index;
     in.results = store_.StageResults(*render, &in.completions);
+    for (int stage : info->plan->FrameStages()) {
+        if (stage == render->index) continue;
+        std::optional<StageRow> row = store_.GetStage(id, frame, stage);
+        if (!row)
+            ThrowError(ErrorCode::kInternal,
+                       fmt::format("{} frame {} has no stage {}", job_id, frame, stage));
+        FrameAssemblyInput::Contribution c;
+        c.stage = stage;
+        c.results = store_.StageResults(*row, &c.completions);
+        in.contributions.push_back(std::move(c));
+    }
     return in;
 }
 

@@ -123,6 +123,14 @@ struct FrameAssemblyInput {
     // The render stage's results: (task index, blob), in task order.
     std::vector<std::pair<int, std::string>> results;
     std::vector<int> completions;  // each task's completion count when `results` was read
+    // The other stages whose results add to the frame (BDPT's light paths), in stage
+    // order, with theirs.
+    struct Contribution {
+        int stage = 0;
+        std::vector<std::pair<int, std::string>> results;
+        std::vector<int> completions;
+    };
+    std::vector<Contribution> contributions;
 };
 
 // What merging an artifact stage of a frame needs.
@@ -280,6 +288,9 @@ class Scheduler {
     // end drop them from the cache, not from under a holder of the pointer).
     std::shared_ptr<const JobInfo> Info(int64_t job_id);
     JobRow LoadJob(int64_t job_id);
+    // Whether every stage of the frame that adds to the image (the render stage, and
+    // BDPT's light paths beside it) has all its tasks done. Requires mu_.
+    bool FrameStagesDone(int64_t job_id, int frame, const RenderPlan& plan);
     // The task's current lease, held by worker `wid` with `token`; throws otherwise.
     const Lease& CurrentLease(int64_t wid, int64_t task_id, int64_t lease_id,
                               const std::string& token, TaskRow* task);

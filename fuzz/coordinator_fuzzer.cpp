@@ -166,8 +166,18 @@ class Session {
                 return tessera::EncodePhotonBatch({}, check.task_index);
             case tessera::StageKind::kIrradiance:
                 return tessera::EncodeIrradianceTaskResult(check.task_index, {});
+            case tessera::StageKind::kLightPaths:
             case tessera::StageKind::kRender:
                 break;
+        }
+        if (stage.task_kind == tessera::TaskKind::kSplat) {
+            tessera::SplatResult splat;
+            splat.task_index = check.task_index;
+            splat.resolution = check.plan->resolution;
+            splat.rgb.assign(size_t(splat.resolution.x) * splat.resolution.y * 3, 0.0f);
+            for (size_t i = 0; i < splat.rgb.size() && in.Bool(); ++i)
+                splat.rgb[i] = std::bit_cast<float>(in.U32());
+            return tessera::EncodeSplatResult(splat);
         }
         tessera::TileResult tile;
         tile.task_index = check.task_index;

@@ -233,5 +233,52 @@ TEST(SplatPlanTest, AssemblerSumsSplatBuffers) {
     EXPECT_THROW(tiles.Add(SomeSplats(0, Vec2i(8, 4), 0)), std::invalid_argument);
 }
 
+// BDPT's plan: a light-path stage of splat tasks beside the render stage's tiles; both add
+// to the frame, which is the resolved tiles plus the splat sum.
+TEST(SplatPlanTest, BdptPlanAddsLightPathsToTheTiles) {
+    RenderSettings s;
+    s.integrator = "bdpt";
+    s.spp = 4;
+    s.tile_size = 4;
+    EXPECT_TRUE(TracesLightSubpaths(s));
+    EXPECT_FALSE(TracesLightPaths(s));
+    const RenderPlan plan = MakeRenderPlan(Vec2i(8, 4), s);
+    ASSERT_EQ(plan.stages.size(), 2u);
+    EXPECT_EQ(plan.stages[0].name, kLightPathStage);
+    EXPECT_EQ(plan.stages[0].kind, StageKind::kLightPaths);
+    EXPECT_EQ(plan.stages[0].task_kind, TaskKind::kSplat);
+    EXPECT_TRUE(plan.stages[0].reads.empty());  // runs beside the tiles
+    EXPECT_EQ(plan.stages[1].task_kind, TaskKind::kTile);
+    EXPECT_EQ(plan.FrameStages(), (std::vector<int>{0, 1}));
+    const int bands = plan.stages[0].num_tasks;
+    ASSERT_EQ(bands, 4);
+    ASSERT_EQ(plan.stages[1].num_tasks, 2);
+
+    FrameAssembler a(plan);
+    for (int t = 0; t < 2; ++t) {
+        TileResult r;
+        r.task_index = t;
+        r.region = plan.tile_regions[t];
+        r.data.assign(size_t(r.region.Width()) * r.region.Height() * TileFilm::kChannels, 0);
+        for (size_t p = 0; p < r.data.size(); p += TileFilm::kChannels) {
+            r.data[p] = 0.5f;                         // R, weighted
+            r.data[p + TileFilm::kChannels - 1] = 1;  // the weight
+        }
+        a.AddEncoded(1, EncodeTileResult(r));
+    }
+    EXPECT_FALSE(a.Complete());
+    for (int t = bands - 1; t >= 0; --t)
+        a.AddEncoded(0, EncodeSplatResult(SomeSplats(t, Vec2i(8, 4), 0.25f)));
+    EXPECT_TRUE(a.Complete());
+    EXPECT_EQ(a.Received(), 2 + bands);
+    const Image image = a.Assemble();
+    EXPECT_FLOAT_EQ(image.pixels[0], 0.5f + bands * 0.25f);
+    EXPECT_FLOAT_EQ(image.pixels[1], bands * 0.25f);
+    EXPECT_EQ(image.pixels[3], 1.0f);  // alpha from the tiles
+    EXPECT_THROW(a.AddEncoded(0, EncodeTileResult(TileResult{})), std::runtime_error);
+    EXPECT_EQ(FirstNonFiniteValue(plan, 0, EncodeSplatResult(SomeSplats(0, Vec2i(8, 4), 1))), "");
+    EXPECT_NO_THROW(CheckTaskResult(plan, 0, 3, EncodeSplatResult(SomeSplats(3, Vec2i(8, 4), 1))));
+}
+
 }  // namespace
 }  // namespace tessera

@@ -22,6 +22,8 @@ bool UsesPhotonMaps(const RenderSettings& s) { return s.integrator == "photon"; 
 
 bool TracesLightPaths(const RenderSettings& s) { return s.integrator == "light"; }
 
+bool TracesLightSubpaths(const RenderSettings& s) { return s.integrator == "bdpt"; }
+
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs) {
     const std::string& name = settings.integrator;

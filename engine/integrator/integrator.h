@@ -42,10 +42,11 @@ class Integrator {
     virtual SampleValue Li(const Ray& ray, Sampler& sampler, ScratchBuffer& arena,
                            IntegratorTaskState* state) const = 0;
     // Integrators whose paths start on lights (light tracing; BDPT's t = 1 strategies):
-    // traces the light path of one sample stream (`sampler` already started at a pixel
-    // stream and sample index, which name the path's random numbers, not where it lands)
-    // at shutter time `time` in [0, 1), and adds its contributions to `film` wherever they
-    // land. The film's scale holds the 1/spp of camera/camera.h's normalisation.
+    // traces the light path of one sample stream (`sampler` started at a pixel stream and
+    // sample index, which name the path's random numbers, not where it lands, and past the
+    // camera sample's prologue: pixel position, lens and time, drawn as for Li) at shutter
+    // time `time` in [0, 1), and adds its contributions to `film` wherever they land. The
+    // film's scale holds the 1/spp of camera/camera.h's normalisation.
     virtual void SplatPath(Sampler& /*sampler*/, float /*time*/, ScratchBuffer& /*arena*/,
                            SplatFilm& /*film*/, IntegratorTaskState* /*state*/) const {}
     // Irradiance caching: makes sure that the cache (shared or the task's own) covers
@@ -76,5 +77,9 @@ bool UsesPhotonMaps(const RenderSettings& settings);
 // Whether the integrator's paths start on lights and splat onto the film (its render
 // stage is made of splat tasks, and it renders with SplatPath rather than Li).
 bool TracesLightPaths(const RenderSettings& settings);
+// Whether the integrator joins light and camera subpaths (BDPT): its plan has a light-path
+// stage of splat tasks (SplatPath: the t = 1 strategies) before the render stage's tiles
+// (Li: every other strategy), over the same sample streams.
+bool TracesLightSubpaths(const RenderSettings& settings);
 
 }  // namespace tessera

@@ -168,6 +168,7 @@ std::string FrameRenderer::RunTask(int stage, int task_index, const ArtifactSet&
         case StageKind::kIrradiance:
             result = RunIrradianceTask(stage, task_index, artifacts, arena);
             break;
+        case StageKind::kLightPaths:
         case StageKind::kRender: {
             if (s.task_kind == TaskKind::kSplat) {
                 result = EncodeSplatResult(RenderSplatTask(task_index, arena, artifacts));
@@ -193,13 +194,19 @@ SplatResult FrameRenderer::RenderSplatTask(int task_index, ScratchBuffer& arena,
     std::unique_ptr<Sampler> sampler = sampler_->Clone();
     // Light paths counted per pixel sample: spp of them per stream pixel (camera.h).
     SplatFilm film(resolution_, *filter_, 1.0f / static_cast<float>(settings_.spp));
+    const ShutterTimes times(settings_);
     const PixelBounds band = plan_.SplatBand(task_index);
     for (int y = band.lo.y; y < band.hi.y; ++y)
         for (int x = band.lo.x; x < band.hi.x; ++x)
             for (int i = 0; i < settings_.spp; ++i) {
+                // The camera sample's prologue, drawn as RenderTile draws it (pixel
+                // position, lens, shutter time): a stream's light path then starts at the
+                // same dimension and time in both kinds of task, so that BDPT's tile and
+                // splat tasks trace the same light subpath.
                 sampler->StartPixelSample(Vec2i(x, y), i);
-                // The path's shutter time is its stream's first dimension.
-                const float time = sampler->Get1D();
+                const Vec2 u = sampler->GetPixel2D();
+                sampler->Get2D();
+                const float time = times.Sample(*sampler, u, Vec2i(x, y), i);
                 integrator->SplatPath(*sampler, time, arena, film, state.get());
                 arena.Reset();
             }

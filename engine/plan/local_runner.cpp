@@ -28,9 +28,9 @@ Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int t
         const auto start = std::chrono::steady_clock::now();
         const StagePlan& stage = plan.stages[s];
         const int n = stage.num_tasks;
-        // The render stage's results go to the assembler as they come (it sums splat
+        // The frame stages' results go to the assembler as they come (it sums splat
         // buffers in task order as soon as that order allows, so few wait in memory).
-        const bool render = s == plan.RenderStageIndex();
+        const bool render = !stage.produces_artifact;
         results.assign(render ? 0 : n, {});
         std::mutex mutex;
         int done = 0;
@@ -39,7 +39,7 @@ Image RenderFrameLocal(const Scene& scene, const RenderSettings& settings, int t
                 std::string result = renderer.RunTask(s, i, artifacts, arenas.local());
                 std::lock_guard lock(mutex);
                 if (render)
-                    assembler.AddEncoded(result);
+                    assembler.AddEncoded(s, result);
                 else
                     results[i] = std::move(result);
                 if (progress) progress(stage, ++done, n);

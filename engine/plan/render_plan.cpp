@@ -29,11 +29,38 @@ PixelBounds RenderPlan::SplatBand(int task) const {
     return PixelBounds{Vec2i(0, y0), Vec2i(resolution.x, y1)};
 }
 
+std::vector<int> RenderPlan::FrameStages() const {
+    std::vector<int> out;
+    for (size_t i = 0; i < stages.size(); ++i)
+        if (!stages[i].produces_artifact) out.push_back(static_cast<int>(i));
+    return out;
+}
+
 int RenderPlan::StageIndex(const std::string& name) const {
     for (size_t i = 0; i < stages.size(); ++i)
         if (stages[i].name == name) return static_cast<int>(i);
     return -1;
 }
+
+namespace {
+
+// The splat tasks of a frame: enough for the paths-per-task budget, and at least
+// kMinSplatTasks (or one per row) so that a local render keeps every thread busy. Sets
+// *rows_per_task to the image rows of sample streams per task.
+int SplatTasks(Vec2i resolution, const RenderSettings& settings, int* rows_per_task) {
+    if (settings.light_paths_per_task < 1)
+        throw std::invalid_argument("light paths per task must be at least 1");
+    const int rows = std::max(1, resolution.y);
+    const int64_t paths = int64_t(std::max(1, resolution.x)) * rows * settings.spp;
+    const int64_t tasks =
+        std::min<int64_t>(rows, std::max<int64_t>((paths + settings.light_paths_per_task - 1) /
+                                                      settings.light_paths_per_task,
+                                                  std::min(kMinSplatTasks, rows)));
+    *rows_per_task = static_cast<int>((rows + tasks - 1) / tasks);
+    return (rows + *rows_per_task - 1) / *rows_per_task;
+}
+
+}  // namespace
 
 RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     if (settings.tile_size < 1) throw std::invalid_argument("tile size must be at least 1");
@@ -86,6 +113,17 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
         }
         if (previous >= 0) render_reads.push_back(previous);
     }
+    if (TracesLightSubpaths(settings)) {
+        // BDPT: light subpaths connected to the camera (t = 1) splat anywhere on the film;
+        // the render stage's tiles do every other strategy over the same streams.
+        StagePlan light;
+        light.name = kLightPathStage;
+        light.kind = StageKind::kLightPaths;
+        light.task_kind = TaskKind::kSplat;
+        light.num_tasks = SplatTasks(resolution, settings, &plan.splat_rows);
+        light.label = "light paths";
+        plan.stages.push_back(light);
+    }
     StagePlan render;
     render.name = kRenderStage;
     render.kind = StageKind::kRender;
@@ -94,19 +132,8 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     render.reads = render_reads;
     render.label = "render";
     if (TracesLightPaths(settings)) {
-        if (settings.light_paths_per_task < 1)
-            throw std::invalid_argument("light paths per task must be at least 1");
-        // Enough tasks for the paths-per-task budget, and at least kMinSplatTasks (or one
-        // per row) so that a local render keeps every thread busy.
-        const int rows = std::max(1, resolution.y);
-        const int64_t paths = int64_t(std::max(1, resolution.x)) * rows * settings.spp;
-        const int64_t tasks = std::max<int64_t>(
-            (paths + settings.light_paths_per_task - 1) / settings.light_paths_per_task,
-            std::min(kMinSplatTasks, rows));
-        plan.splat_rows = static_cast<int>((rows + std::min<int64_t>(tasks, rows) - 1) /
-                                           std::min<int64_t>(tasks, rows));
         render.task_kind = TaskKind::kSplat;
-        render.num_tasks = (resolution.y + plan.splat_rows - 1) / plan.splat_rows;
+        render.num_tasks = SplatTasks(resolution, settings, &plan.splat_rows);
         render.label = "light paths";
     }
     plan.stages.push_back(render);
@@ -215,84 +242,126 @@ SplatResult DecodeSplatResult(const std::string& bytes) {
     return r;
 }
 
-FrameAssembler::FrameAssembler(const RenderPlan& plan)
-    : plan_(plan),
-      splats_(plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat),
-      present_(plan.stages.at(plan.RenderStageIndex()).num_tasks, false) {
-    if (splats_)
-        splat_sum_.assign(size_t(plan.resolution.x) * plan.resolution.y * 3, 0.0);
-    else
-        results_.resize(present_.size());
+FrameAssembler::FrameAssembler(const RenderPlan& plan) : plan_(plan) {
+    for (int index : plan.FrameStages()) {
+        const StagePlan& stage = plan.stages[index];
+        StageSum s;
+        s.stage = index;
+        s.splats = stage.task_kind == TaskKind::kSplat;
+        s.present.assign(stage.num_tasks, false);
+        if (s.splats)
+            s.sum.assign(size_t(plan.resolution.x) * plan.resolution.y * 3, 0.0);
+        else
+            s.tiles.resize(stage.num_tasks);
+        stages_.push_back(std::move(s));
+    }
 }
 
-void FrameAssembler::Claim(int task_index) {
-    const int n = static_cast<int>(present_.size());
+FrameAssembler::StageSum& FrameAssembler::Stage(int stage) {
+    for (StageSum& s : stages_)
+        if (s.stage == stage) return s;
+    throw std::invalid_argument(fmt::format("stage {} adds nothing to the frame", stage));
+}
+
+void FrameAssembler::Claim(StageSum& s, int task_index) {
+    const int n = static_cast<int>(s.present.size());
     if (task_index < 0 || task_index >= n)
-        throw std::invalid_argument(fmt::format("render result {} is out of range", task_index));
-    if (present_[task_index])
-        throw std::invalid_argument(fmt::format("render result {} arrived twice", task_index));
+        throw std::invalid_argument(fmt::format("result {} is out of range", task_index));
+    if (s.present[task_index])
+        throw std::invalid_argument(fmt::format("result {} arrived twice", task_index));
 }
 
 void FrameAssembler::Add(TileResult r) {
-    if (splats_)
+    StageSum& s = stages_.back();
+    if (s.splats)
         throw std::invalid_argument(
             fmt::format("tile result {} for a render stage of splat tasks", r.task_index));
-    Claim(r.task_index);
+    Claim(s, r.task_index);
     if (r.region != plan_.tile_regions[r.task_index])
         throw std::invalid_argument(
             fmt::format("tile result {} is not its planned region", r.task_index));
-    present_[r.task_index] = true;
-    results_[r.task_index] = std::move(r);
-    ++received_;
+    s.present[r.task_index] = true;
+    s.tiles[r.task_index] = std::move(r);
+    ++s.received;
 }
 
-void FrameAssembler::Add(SplatResult r) {
-    if (!splats_)
+void FrameAssembler::Add(SplatResult r) { Add(stages_.back().stage, std::move(r)); }
+
+void FrameAssembler::Add(int stage, SplatResult r) {
+    StageSum& s = Stage(stage);
+    if (!s.splats)
         throw std::invalid_argument(
-            fmt::format("splat result {} for a render stage of tiles", r.task_index));
-    Claim(r.task_index);
+            fmt::format("splat result {} for a stage of tiles", r.task_index));
+    Claim(s, r.task_index);
     if (r.resolution != plan_.resolution)
         throw std::invalid_argument(fmt::format("splat result {} is {}x{}, the frame {}x{}",
                                                 r.task_index, r.resolution.x, r.resolution.y,
                                                 plan_.resolution.x, plan_.resolution.y));
-    present_[r.task_index] = true;
-    pending_.emplace(r.task_index, std::move(r));
-    ++received_;
-    for (auto it = pending_.begin(); it != pending_.end() && it->first == next_splat_;
-         it = pending_.erase(it), ++next_splat_)
-        for (size_t i = 0; i < splat_sum_.size(); ++i) splat_sum_[i] += it->second.rgb[i];
+    s.present[r.task_index] = true;
+    s.pending.emplace(r.task_index, std::move(r));
+    ++s.received;
+    for (auto it = s.pending.begin(); it != s.pending.end() && it->first == s.next;
+         it = s.pending.erase(it), ++s.next)
+        for (size_t i = 0; i < s.sum.size(); ++i) s.sum[i] += it->second.rgb[i];
 }
 
 void FrameAssembler::AddEncoded(const std::string& bytes) {
-    if (splats_)
-        Add(DecodeSplatResult(bytes));
-    else
+    AddEncoded(stages_.back().stage, bytes);
+}
+
+void FrameAssembler::AddEncoded(int stage, const std::string& bytes) {
+    if (Stage(stage).splats)
+        Add(stage, DecodeSplatResult(bytes));
+    else if (stage == stages_.back().stage)
         Add(DecodeTileResult(bytes));
+    else
+        throw std::invalid_argument(fmt::format("stage {} adds no tiles to the frame", stage));
+}
+
+bool FrameAssembler::Complete() const {
+    for (const StageSum& s : stages_)
+        if (s.received != static_cast<int>(s.present.size())) return false;
+    return true;
+}
+
+int FrameAssembler::Received() const {
+    int n = 0;
+    for (const StageSum& s : stages_) n += s.received;
+    return n;
 }
 
 Image FrameAssembler::Assemble() const {
-    if (!Complete())
-        throw std::logic_error(
-            fmt::format("frame has {} of {} render results", received_, present_.size()));
+    if (!Complete()) {
+        size_t total = 0;
+        for (const StageSum& s : stages_) total += s.present.size();
+        throw std::logic_error(fmt::format("frame has {} of {} results", Received(), total));
+    }
     Film film(plan_.resolution);
-    for (const TileResult& r : results_) film.Merge(r.region, r.data);
+    for (const StageSum& s : stages_)
+        for (const TileResult& r : s.tiles) film.Merge(r.region, r.data);
     Image image = film.Resolve();
-    if (splats_) {
-        // The sum of the splat buffers in task order, in double; every pixel is rendered.
-        const size_t pixels = size_t(plan_.resolution.x) * plan_.resolution.y;
-        const std::vector<double>& sum = splat_sum_;
-        const int n = image.NumChannels();
+    const size_t pixels = size_t(plan_.resolution.x) * plan_.resolution.y;
+    const int n = image.NumChannels();
+    // Without tiles, splats alone render every pixel.
+    const bool splats_alone = stages_.back().splats;
+    for (const StageSum& s : stages_) {
+        if (!s.splats) continue;
+        // The stage's splat buffers, summed in task order in double.
         for (size_t p = 0; p < pixels; ++p) {
             float* out = &image.pixels[p * n];
-            for (int c = 0; c < 3; ++c) out[c] += static_cast<float>(sum[p * 3 + c]);
-            out[3] = 1;
+            for (int c = 0; c < 3; ++c) out[c] += static_cast<float>(s.sum[p * 3 + c]);
+            if (splats_alone) out[3] = 1;
         }
     }
     return image;
 }
 
 std::string FirstNonFiniteValue(const RenderPlan& plan, const std::string& bytes) {
-    const bool splats = plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat;
+    return FirstNonFiniteValue(plan, plan.RenderStageIndex(), bytes);
+}
+
+std::string FirstNonFiniteValue(const RenderPlan& plan, int stage, const std::string& bytes) {
+    const bool splats = plan.stages.at(stage).task_kind == TaskKind::kSplat;
     const std::vector<float> data =
         splats ? DecodeSplatResult(bytes).rgb : DecodeTileResult(bytes).data;
     const int channels = splats ? 3 : TileFilm::kChannels;

@@ -15,6 +15,7 @@
 //   irradiance-cache    irradiance-1 .. irradiance-P, render
 //   photon              photons [, irradiance-1 .. irradiance-P], render
 //   light               render (splat tasks: bands of light-path streams)
+//   bdpt                light-paths (splat tasks), render (tiles)
 //
 // A splat task traces the light paths of a band of image rows' sample streams: stream
 // (x, y) with sample index i < spp names the path's random numbers (as a camera sample's
@@ -39,6 +40,7 @@ namespace tessera {
 inline constexpr const char* kRenderStage = "render";
 inline constexpr const char* kPhotonStage = "photons";
 inline constexpr const char* kIrradianceStagePrefix = "irradiance-";
+inline constexpr const char* kLightPathStage = "light-paths";
 
 enum class TaskKind {
     kTile,   // one tile of the image
@@ -46,7 +48,9 @@ enum class TaskKind {
     kSplat,  // a batch of paths that deposit anywhere on the film
 };
 
-enum class StageKind { kPhotons, kIrradiance, kRender };
+// kLightPaths: splat tasks that add to the frame beside the render stage (BDPT's t = 1
+// strategies); their streams are the render stage's, so they share its light subpaths.
+enum class StageKind { kPhotons, kIrradiance, kRender, kLightPaths };
 
 struct StagePlan {
     std::string name;  // unique in the plan: "photons", "irradiance-2", "render"
@@ -85,6 +89,9 @@ struct RenderPlan {
     // -1 when the plan has no such stage.
     int StageIndex(const std::string& name) const;
     int RenderStageIndex() const { return static_cast<int>(stages.size()) - 1; }
+    // The stages whose results make up the frame (those that produce no artifact), in
+    // stage order; the render stage is the last.
+    std::vector<int> FrameStages() const;
 };
 
 // Throws std::invalid_argument for settings no plan can be made of.
@@ -115,42 +122,56 @@ struct SplatResult {
 std::string EncodeSplatResult(const SplatResult& result);
 SplatResult DecodeSplatResult(const std::string& bytes);
 
-// Sums the render stage's results (tile films, or splat buffers) in task-index order,
-// whatever order they arrive in, so that every runner produces the same bits.
+// Sums the frame stages' results (tile films, splat buffers) in task-index order, whatever
+// order they arrive in, so that every runner produces the same bits. The image is the
+// resolved tile film (if the render stage has tiles) plus each splat stage's sum, in stage
+// order.
 class FrameAssembler {
   public:
     explicit FrameAssembler(const RenderPlan& plan);
-    // Throws std::invalid_argument for an index out of range, a duplicate, a region that
-    // is not the planned tile's region (tile and apron), or a result of the other kind.
+    // A result of the render stage. Throws std::invalid_argument for an index out of
+    // range, a duplicate, a region that is not the planned tile's region (tile and apron),
+    // another resolution, or a result of the other kind.
     void Add(TileResult result);
-    // A splat buffer; throws std::invalid_argument as Add does, or for another resolution.
     void Add(SplatResult result);
-    // Decodes a render-stage result by the stage's task kind and adds it. Throws
-    // std::runtime_error for malformed bytes, std::invalid_argument as Add does.
+    // A splat result of frame stage `stage` (the render stage or a light-path stage).
+    void Add(int stage, SplatResult result);
+    // Decodes a result of frame stage `stage` (default: the render stage) by the stage's
+    // task kind and adds it. Throws std::runtime_error for malformed bytes,
+    // std::invalid_argument as Add does, or for a stage that is not a frame stage.
     void AddEncoded(const std::string& bytes);
-    bool Complete() const { return received_ == static_cast<int>(present_.size()); }
-    int Received() const { return received_; }
+    void AddEncoded(int stage, const std::string& bytes);
+    bool Complete() const;
+    // Results received, over all frame stages.
+    int Received() const;
     // Requires Complete().
     Image Assemble() const;
 
   private:
-    void Claim(int task_index);
+    // One frame stage's results so far.
+    struct StageSum {
+        int stage = 0;
+        bool splats = false;
+        std::vector<bool> present;
+        int received = 0;
+        std::vector<TileResult> tiles;
+        // Splat buffers: summed in task order as that order allows; those that arrive
+        // before their predecessors wait in `pending`.
+        std::vector<double> sum;
+        std::map<int, SplatResult> pending;
+        int next = 0;
+    };
+    StageSum& Stage(int stage);
+    static void Claim(StageSum& s, int task_index);
 
     RenderPlan plan_;
-    bool splats_;  // the render stage's tasks are splat tasks
-    std::vector<TileResult> results_;
-    // Splat buffers: summed in task order as that order allows; those that arrive before
-    // their predecessors wait in pending_.
-    std::vector<double> splat_sum_;
-    std::map<int, SplatResult> pending_;
-    int next_splat_ = 0;
-    std::vector<bool> present_;
-    int received_ = 0;
+    std::vector<StageSum> stages_;  // the frame stages, in stage order
 };
 
-// Checks that a render-stage result's values are all finite; returns where the first
-// one that is not lies ("value 12 (pixel 4, channel 0) is nan"), or an empty string.
-// Throws std::runtime_error for malformed bytes.
+// Checks that a frame stage's result has only finite values; returns where the first one
+// that is not lies ("value 12 (pixel 4, channel 0) is nan"), or an empty string. Throws
+// std::runtime_error for malformed bytes. Without `stage`: the render stage.
+std::string FirstNonFiniteValue(const RenderPlan& plan, int stage, const std::string& bytes);
 std::string FirstNonFiniteValue(const RenderPlan& plan, const std::string& bytes);
 
 // Header attributes every runner writes into a frame's EXR.

@@ -92,6 +92,7 @@ void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const st
                         "the result holds the records of tile {}, not {}", index, task_index));
                 return;
             }
+            case StageKind::kLightPaths:
             case StageKind::kRender: {
                 if (plan.stages[stage].task_kind == TaskKind::kSplat) {
                     SplatResult r = DecodeSplatResult(bytes);
