@@ -118,9 +118,33 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
                                              in.results.size(), tiles));
 
     FrameAssembler assembler(plan);
+    // One frame stage's results, in task order: tiles or splat buffers, each checked to be
+    // the task it was stored for.
+    auto read_stage = [&](int stage, const std::vector<std::pair<int, std::string>>& results,
+                          const std::vector<int>& completions) {
+        const bool splats = plan.stages[stage].task_kind == TaskKind::kSplat;
+        ReadResults(
+            results, completions, blobs, splats ? "splat task" : "tile",
+            [&](int index, std::string bytes) {
+                if (splats) {
+                    SplatResult result = DecodeSplatResult(bytes);
+                    if (result.task_index != index)
+                        throw std::runtime_error(
+                            fmt::format("the blob holds splat task {}", result.task_index));
+                    assembler.Add(stage, std::move(result));
+                    return;
+                }
+                TileResult result = DecodeTileResult(bytes);
+                if (result.task_index != index)
+                    throw std::runtime_error(
+                        fmt::format("the blob holds tile {}", result.task_index));
+                assembler.Add(std::move(result));
+            },
+            stage);
+    };
     // Earlier stages that add to the frame (their tasks run beside the render stage's).
     for (const FrameAssemblyInput::Contribution& c : in.contributions) {
-        if (c.stage < 0 || c.stage >= static_cast<int>(plan.stages.size()) ||
+        if (c.stage < 0 || c.stage >= plan.RenderStageIndex() ||
             plan.stages[c.stage].produces_artifact)
             throw std::runtime_error(
                 fmt::format("stage {} adds nothing to frame {}", c.stage, in.frame));
@@ -128,34 +152,9 @@ std::string WriteFrame(const FrameAssemblyInput& in, BlobStore& blobs,
             throw std::runtime_error(
                 fmt::format("frame {} has {} {} results, its plan {}", in.frame, c.results.size(),
                             plan.stages[c.stage].name, plan.stages[c.stage].num_tasks));
-        ReadResults(
-            c.results, c.completions, blobs, "splat task",
-            [&](int index, std::string bytes) {
-                SplatResult result = DecodeSplatResult(bytes);
-                if (result.task_index != index)
-                    throw std::runtime_error(
-                        fmt::format("the blob holds splat task {}", result.task_index));
-                assembler.Add(c.stage, std::move(result));
-            },
-            c.stage);
+        read_stage(c.stage, c.results, c.completions);
     }
-    const bool splats = plan.stages.at(plan.RenderStageIndex()).task_kind == TaskKind::kSplat;
-    ReadResults(
-        in.results, in.completions, blobs, splats ? "splat task" : "tile",
-        [&](int index, std::string bytes) {
-            if (splats) {
-                SplatResult result = DecodeSplatResult(bytes);
-                if (result.task_index != index)
-                    throw std::runtime_error(
-                        fmt::format("the blob holds splat task {}", result.task_index));
-                assembler.Add(std::move(result));
-                return;
-            }
-            TileResult result = DecodeTileResult(bytes);
-            if (result.task_index != index)
-                throw std::runtime_error(fmt::format("the blob holds tile {}", result.task_index));
-            assembler.Add(std::move(result));
-        });
+    read_stage(plan.RenderStageIndex(), in.results, in.completions);
     const Image image = assembler.Assemble();
     const double seconds =
         in.started_ms > 0 ? std::max<int64_t>(0, now_ms - in.started_ms) / 1e3 : 0;
