@@ -146,6 +146,44 @@ TEST_F(ImageIoTest, HostileExrHeadersAreRefusedBeforeDecoding) {
     }
 }
 
+// A PNG whose text chunk claims 2 GB (found by fuzzing): libpng would allocate the chunk's
+// claimed size inside open(). Chunks that reach past the file's end are refused first; the
+// file they were cut from still decodes.
+TEST_F(ImageIoTest, PngChunksClaimingMoreThanTheFileAreRefusedBeforeDecoding) {
+    std::ifstream file(
+        std::string(TESSERA_SOURCE_DIR) + "/fuzz/corpus/image/png-text-chunk-claims-2gb.bin",
+        std::ios::binary);
+    ASSERT_TRUE(file);
+    const std::string bytes = std::string((std::istreambuf_iterator<char>(file)), {}).substr(1);
+    try {
+        DecodeImage(bytes, "textures/text.png", ImageDecodeLimits());
+        FAIL() << "the hostile chunk was read";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("bad PNG: chunk"), std::string::npos) << e.what();
+    }
+
+    Image image;
+    image.width = 3;
+    image.height = 2;
+    image.channels = {"R", "G", "B"};
+    image.pixels.assign(18, 0.5f);
+    WritePngPreview(PathOf("small.png"), image);
+    std::ifstream small_file(PathOf("small.png"), std::ios::binary);
+    std::string small((std::istreambuf_iterator<char>(small_file)), {});
+    EXPECT_EQ(DecodeImage(small, "small.png", ImageDecodeLimits()).width, 3);
+    // The first chunk after the signature (IHDR) made to claim 2^31 - 1 bytes.
+    const std::string claims("\x7f\xff\xff\xff", 4);
+    small.replace(8, 4, claims);
+    try {
+        DecodeImage(small, "small.png", ImageDecodeLimits());
+        FAIL() << "a chunk longer than the file was accepted";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("chunk 'IHDR' at byte 8 claims 2147483647 bytes"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST_F(ImageIoTest, ExrChannelOrderIsTheReadersNotTheWriters) {
     // OpenEXR stores channels sorted by name and OpenImageIO lists R G B A first when
     // reading; the order written is not kept, which is why callers look channels up by name.

@@ -384,6 +384,17 @@ TEST(PlyLoader, Errors) {
     bad_index.replace(bad_index.rfind("3 1 4 2"), 7, "3 1 9 2");
     EXPECT_NE(ExpectLoadError(dir.Write("index.ply", bad_index)).find("face 1 uses vertex 9"),
               std::string::npos);
+    // Indices that are no vertex's: huge (a float outside every integer type), not a
+    // number, a fraction; each named as written.
+    for (const auto& [index, named] :
+         {std::pair<std::string, std::string>{"21e30", "face 1 uses vertex 2.1e+31"},
+          {"nan", "'nan' is not an integer"},
+          {"1.5", "'1.5' is not an integer"}}) {
+        std::string odd = ascii;
+        odd.replace(odd.rfind("3 1 4 2"), 7, "3 1 " + index + " 2");
+        EXPECT_NE(ExpectLoadError(dir.Write("odd.ply", odd)).find(named), std::string::npos)
+            << index;
+    }
 
     std::string binary = BinaryPly(false);
     std::string truncated = binary.substr(0, binary.size() - 6);

@@ -353,10 +353,38 @@ void CheckExrHeader(std::string_view bytes, const std::string& name,
     if (!channels || !window) bad("no channel list or data window");
 }
 
+// libpng allocates each ancillary chunk (text, profiles, metadata) at the size its
+// header claims before reading it: a chunk that claims 2 GB in a file of a few hundred
+// bytes allocates 2 GB inside open(). The chunk list is walked here first: every chunk
+// must lie within the file, up to IEND.
+void CheckPngChunks(std::string_view bytes, const std::string& name) {
+    static constexpr char kSignature[] = "\x89PNG\r\n\x1a\n";
+    if (bytes.size() < 8 || bytes.substr(0, 8) != std::string_view(kSignature, 8))
+        return;  // not a PNG: libpng says so itself
+    size_t at = 8;
+    while (bytes.size() - at >= 8) {
+        uint32_t length = 0;
+        for (int i = 0; i < 4; ++i) length = length << 8 | uint8_t(bytes[at + i]);
+        const std::string type(bytes.substr(at + 4, 4));
+        const size_t remaining = bytes.size() - at - 8;
+        if (length > 0x7fffffffu || size_t(length) + 4 > remaining) {
+            std::string printable;
+            for (char c : type) printable += std::isalnum(uint8_t(c)) ? c : '?';
+            Fail("cannot read", name,
+                 "bad PNG: chunk '" + printable + "' at byte " + std::to_string(at) + " claims " +
+                     std::to_string(length) + " bytes, but the file has only " +
+                     std::to_string(remaining < 4 ? 0 : remaining - 4) + " after its header");
+        }
+        at += 12 + size_t(length);
+        if (type == "IEND") return;
+    }
+}
+
 Image DecodeImage(std::string_view bytes, const std::string& name, const ImageDecodeLimits& limits,
                   ImageMetadata* metadata) {
     const std::string format = ReaderForExtension(name);
     if (format == "openexr") CheckExrHeader(bytes, name, limits);
+    if (format == "png") CheckPngChunks(bytes, name);
     std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::create(format);
     if (!in) Fail("cannot read", name, OIIO::geterror());
     if (!in->supports("ioproxy"))

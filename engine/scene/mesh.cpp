@@ -7,6 +7,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -531,10 +532,14 @@ TriangleMesh LoadPly(const std::string& path, const std::string& data) {
                 for (size_t k = 0; k < size_t(n); ++k) {
                     read(p.type, &v);
                     if (!indices) continue;
-                    if (v < 0 || v >= double(vertex->count))
-                        fail("face " + std::to_string(i) + " uses vertex " +
-                             std::to_string(static_cast<long long>(v)) + " but there are only " +
-                             std::to_string(vertex->count) + " vertices");
+                    // NaN, fractions and huge values (an ASCII "1e30") are refused too;
+                    // the index is written as read.
+                    if (!(v >= 0 && v < double(vertex->count)) || v != std::floor(v)) {
+                        char written[32];
+                        std::snprintf(written, sizeof written, "%g", v);
+                        fail("face " + std::to_string(i) + " uses vertex " + written +
+                             " but there are only " + std::to_string(vertex->count) + " vertices");
+                    }
                     polygon.push_back(uint32_t(v));
                 }
                 if (indices && polygon.size() < 3)
