@@ -16,9 +16,12 @@ void RenderFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
     cmd.add_option("--integrator", integrator,
                    "Integrator: path, direct, photon (photon mapping with final gathering), "
-                   "irradiance-cache (path-traced direct light, cached indirect light) or "
-                   "light (light tracing: paths from the lights, splatted onto the film)")
-        ->check(CLI::IsMember({"path", "direct", "photon", "irradiance-cache", "light"}));
+                   "irradiance-cache (path-traced direct light, cached indirect light), "
+                   "light (light tracing: paths from the lights, splatted onto the film), "
+                   "bdpt (bidirectional path tracing with MIS) or mlt (Metropolis light "
+                   "transport)")
+        ->check(CLI::IsMember(
+            {"path", "direct", "photon", "irradiance-cache", "light", "bdpt", "mlt"}));
     cmd.add_flag("--irradiance-cache", irradiance_cache,
                  "photon: put the final gather behind an irradiance cache");
     cmd.add_option("--photons", photons, "photon: photons stored in the global map")
@@ -64,8 +67,21 @@ void RenderFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--seed", seed, "Seed of every random stream");
     cmd.add_option("--tile-size", tile_size, "Tile edge in pixels")->check(CLI::PositiveNumber);
     cmd.add_option("--light-paths-per-task", light_paths_per_task,
-                   "Light tracing: light paths per farm task (default 1048576)")
+                   "Light tracing and BDPT: light paths per splat task (default 1048576)")
         ->check(CLI::Range(1, 1 << 30));
+    cmd.add_option("--mlt-bootstrap", mlt_bootstrap, "MLT: bootstrap states per path length")
+        ->check(CLI::Range(1, 1 << 30));
+    cmd.add_option("--mlt-chains", mlt_chains, "MLT: independent Markov chains")
+        ->check(CLI::Range(1, 1 << 20));
+    cmd.add_option("--p-large", p_large, "MLT: probability of a large step (default 0.3)")
+        ->check(CLI::Validator(
+            [](const std::string& text) -> std::string {
+                float p = 0;
+                if (!CLI::detail::lexical_cast(text, p) || !(p > 0 && p <= 1))
+                    return "must be in (0, 1], got " + text;
+                return "";
+            },
+            "(0, 1]"));
     cmd.add_option("--width", width, "Image width (overrides the scene)")
         ->check(CLI::Range(1, 16384));
     cmd.add_option("--height", height, "Image height (overrides the scene)")
@@ -96,6 +112,9 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     if (cmd.count("--ic-samples")) o.ic_samples = ic_samples;
     if (cmd.count("--ic-passes")) o.ic_passes = ic_passes;
     if (cmd.count("--no-gradients")) o.ic_gradients = false;
+    if (cmd.count("--mlt-bootstrap")) o.mlt_bootstrap = mlt_bootstrap;
+    if (cmd.count("--mlt-chains")) o.mlt_chains = mlt_chains;
+    if (cmd.count("--p-large")) o.mlt_p_large = p_large;
     if (cmd.count("--debug")) o.debug = ParseDebugView(debug).value_or(DebugView::kNone);
     return o;
 }

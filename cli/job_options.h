@@ -21,6 +21,8 @@ struct RenderFlags {
     bool irradiance_cache = false, no_gradients = false;
     int photons = 0, caustic_photons = 0, photon_batches = 0, ic_samples = 0, ic_passes = 0;
     float ic_accuracy = 0;
+    int mlt_bootstrap = 0, mlt_chains = 0;
+    float p_large = 0;
     std::string debug;
     std::string filter, filter_sampling;
 

@@ -17,6 +17,7 @@
 #include "io/image_io.h"
 #include "job_options.h"
 #include "movie.h"
+#include "plan/frame_renderer.h"
 #include "plan/local_runner.h"
 #include "progress.h"
 #include "scene/scene_loader.h"
@@ -33,6 +34,8 @@ struct RenderOptions {
     int frame = 0;
     std::string frames;
     MovieFlags movie;
+    bool strategy_images = false;
+    int strategy_length = 5;
 };
 
 namespace fs = std::filesystem;
@@ -83,11 +86,65 @@ OutputFiles NumberedOutputs(const OutputFiles& files, int frame) {
     return {numbered(files.exr), numbered(files.rgb), files.rgb_format};
 }
 
+// BDPT's strategies apart, beside the frame: <stem>.strategies/ holds s<S>-t<T>.exr (each
+// strategy's MIS-weighted share of the frame), s<S>-t<T>.unweighted.exr (its own estimate),
+// length-<k>.exr (the weighted strategies of paths of k bounces summed), rest.exr (longer
+// paths), and strategies.png / strategies-unweighted.png: the images in a grid, one row
+// per path length k = s + t - 2 and one column per s (light subpath vertices).
+void WriteStrategyImages(const Scene& scene, const RenderSettings& s, const RenderOptions& o,
+                         const std::string& exr) {
+    const fs::path folder = fs::path(exr).replace_extension(".strategies");
+    std::error_code ec;
+    fs::create_directories(folder, ec);
+    if (ec)
+        throw SceneError("", fmt::format("cannot create {}: {}", folder.string(), ec.message()));
+    spdlog::info("strategy images: rendering the frame's samples again, strategy by strategy");
+    const StrategyImages images =
+        FrameRenderer(scene, s).RenderStrategyImages(o.strategy_length, o.threads);
+    const int w = scene.GetCamera().Resolution().x, h = scene.GetCamera().Resolution().y;
+    const int rows = images.max_length + 1, cols = images.max_length + 2;
+    auto blank = [](int width, int height) {
+        Image image;
+        image.width = width;
+        image.height = height;
+        image.channels = {"R", "G", "B"};
+        image.pixels.assign(size_t(width) * height * 3, 0.0f);
+        return image;
+    };
+    Image grid = blank(cols * w, rows * h), grid_unweighted = blank(cols * w, rows * h);
+    std::vector<Image> lengths(rows, blank(w, h));
+    const ImageMetadata meta = FrameMetadata(s, 0);
+    for (const StrategyImage& st : images.strategies) {
+        const int k = st.s + st.t - 2;
+        const std::string name = fmt::format("s{}-t{}", st.s, st.t);
+        WriteExr((folder / (name + ".exr")).string(), st.weighted, meta);
+        WriteExr((folder / (name + ".unweighted.exr")).string(), st.unweighted, meta);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    lengths[k].At(x, y, c) += st.weighted.At(x, y, c);
+                    grid.At(st.s * w + x, k * h + y, c) = st.weighted.At(x, y, c);
+                    grid_unweighted.At(st.s * w + x, k * h + y, c) = st.unweighted.At(x, y, c);
+                }
+    }
+    for (int k = 0; k < rows; ++k)
+        WriteExr((folder / fmt::format("length-{}.exr", k)).string(), lengths[k], meta);
+    WriteExr((folder / "rest.exr").string(), images.rest, meta);
+    WriteRgbImage((folder / "strategies.png").string(), grid, ImageFormat::kPng);
+    WriteRgbImage((folder / "strategies-unweighted.png").string(), grid_unweighted,
+                  ImageFormat::kPng);
+    spdlog::info("wrote {} strategy images (paths of up to {} bounces) to {}",
+                 images.strategies.size(), images.max_length, folder.string());
+}
+
 // Renders one frame (the scene loaded for it through `overrides.frame`) into `files`.
 void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
                  const OutputFiles& files) {
     LoadedScene loaded = LoadSceneFile(o.scene, overrides);
     const RenderSettings& s = loaded.settings;
+    if (o.strategy_images && !TracesLightSubpaths(s))
+        throw SceneError(
+            "", fmt::format("--strategy-images needs the bdpt integrator, not {}", s.integrator));
     Vec2i res = loaded.scene->GetCamera().Resolution();
     spdlog::info("{}: {}x{}, {} spp, integrator {}, {} lights, {} triangles", o.scene, res.x, res.y,
                  s.spp, s.integrator, loaded.scene->Lights().size(), loaded.scene->NumTriangles());
@@ -139,6 +196,7 @@ void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
     double samples = double(res.x) * res.y * s.spp;
     spdlog::info("wrote {} and {} in {:.2f} s ({:.0f} samples/s, {:.2f} Mrays/s)", files.exr,
                  files.rgb, seconds, samples / seconds, rays / seconds * 1e-6);
+    if (o.strategy_images) WriteStrategyImages(*loaded.scene, s, o, files.exr);
 }
 
 void RunRender(RenderOptions& o, CLI::App& cmd) {
@@ -198,6 +256,13 @@ void AddRenderCommand(CLI::App& app) {
             "(out.exr: out.0001.exr, ...), and an MP4 movie preview out.mp4 is made from the "
             "previews");
     o->movie.AddTo(*cmd);
+    cmd->add_flag("--strategy-images", o->strategy_images,
+                  "bdpt: also write each strategy's image, weighted and unweighted, and a "
+                  "grid of them (rows: path length, columns: light vertices) to "
+                  "OUT.strategies/");
+    cmd->add_option("--strategy-length", o->strategy_length,
+                    "bdpt: the longest paths (bounces) given strategy images of their own")
+        ->check(CLI::Range(0, 16));
     cmd->add_flag("-q,--quiet", o->quiet, "No progress display");
     cmd->callback([o, cmd] { RunRender(*o, *cmd); });
 }

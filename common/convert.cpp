@@ -44,6 +44,9 @@ RenderOverrides FromProto(const v1::RenderOptions& o) {
     if (o.has_ic_samples()) r.ic_samples = o.ic_samples();
     if (o.has_ic_passes()) r.ic_passes = o.ic_passes();
     if (o.has_ic_gradients()) r.ic_gradients = o.ic_gradients();
+    if (o.has_mlt_bootstrap_samples()) r.mlt_bootstrap = o.mlt_bootstrap_samples();
+    if (o.has_mlt_chains()) r.mlt_chains = o.mlt_chains();
+    if (o.has_mlt_p_large()) r.mlt_p_large = o.mlt_p_large();
     if (o.has_debug()) {
         r.debug = ParseDebugView(o.debug());
         if (!r.debug)
@@ -75,6 +78,9 @@ v1::RenderOptions ToProto(const RenderOverrides& r) {
     if (r.ic_samples) o.set_ic_samples(*r.ic_samples);
     if (r.ic_passes) o.set_ic_passes(*r.ic_passes);
     if (r.ic_gradients) o.set_ic_gradients(*r.ic_gradients);
+    if (r.mlt_bootstrap) o.set_mlt_bootstrap_samples(*r.mlt_bootstrap);
+    if (r.mlt_chains) o.set_mlt_chains(*r.mlt_chains);
+    if (r.mlt_p_large) o.set_mlt_p_large(*r.mlt_p_large);
     if (r.debug) o.set_debug(DebugViewName(*r.debug));
     return o;
 }

@@ -13,6 +13,7 @@
 // a submitted spec may be merged onto a spec of one of them (MergeFromString), so that
 // short inputs reach planning, leases and results.
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cstdint>
@@ -166,6 +167,19 @@ class Session {
                 return tessera::EncodePhotonBatch({}, check.task_index);
             case tessera::StageKind::kIrradiance:
                 return tessera::EncodeIrradianceTaskResult(check.task_index, {});
+            case tessera::StageKind::kMltBootstrap: {
+                // The task's states, each with weights from the input (NaN, negative too).
+                const tessera::MltPlan& m = check.plan->mlt;
+                tessera::MltBootstrapTaskResult r;
+                r.task_index = check.task_index;
+                r.first = int64_t(check.task_index) * m.states_per_task;
+                r.depths = m.max_depth + 1;
+                const int64_t count = std::min(m.states_per_task, m.bootstrap_states - r.first);
+                r.weights.assign(size_t(std::max<int64_t>(0, count)) * r.depths, 0.0f);
+                for (size_t i = 0; i < r.weights.size() && in.Bool(); ++i)
+                    r.weights[i] = std::bit_cast<float>(in.U32());
+                return tessera::EncodeMltBootstrapTask(r);
+            }
             case tessera::StageKind::kLightPaths:
             case tessera::StageKind::kRender:
                 break;

@@ -270,6 +270,19 @@ TEST_F(CliTest, BadCommandLineValueIsRejected) {
     EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
 }
 
+TEST_F(CliTest, MltFlagsAreCheckedByTheCommandLine) {
+    ASSERT_EQ(0, Run("render --help"));
+    for (const char* opt : {"--mlt-bootstrap", "--mlt-chains", "--p-large"})
+        EXPECT_NE(out_.find(opt), std::string::npos) << opt;
+    const std::string out = " -o " + (dir_ / "x.exr").string();
+    for (const char* bad : {"--p-large 0", "--p-large 1.5", "--p-large x", "--mlt-chains 0",
+                            "--mlt-chains 2000000", "--mlt-bootstrap 0"}) {
+        EXPECT_NE(0, Run("render " + kFurnace + " -q " + bad + out)) << bad;
+        EXPECT_FALSE(err_.empty()) << bad;
+    }
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+}
+
 // --- pixel values ----------------------------------------------------------------------
 
 const std::string kCornell = std::string(TESSERA_SOURCE_DIR) + "/scenes/cornell-box/scene.json";

@@ -229,6 +229,7 @@ inline v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
         if (a == "--height") o.height = std::stoi(v);
         if (a == "--spp") o.spp = std::stoi(v);
         if (a == "--tile-size") o.tile_size = std::stoi(v);
+        if (a == "--max-depth") o.max_depth = std::stoi(v);
         if (a == "--photons") o.photons_global = std::stoi(v);
         if (a == "--caustic-photons") o.photons_caustic = std::stoi(v);
         if (a == "--photon-batches") o.photon_batches = std::stoi(v);
@@ -236,6 +237,9 @@ inline v1::RenderOptions OptionsFromArgs(const std::vector<std::string>& args) {
         if (a == "--ic-samples") o.ic_samples = std::stoi(v);
         if (a == "--ic-accuracy") o.ic_accuracy = std::stof(v);
         if (a == "--light-paths-per-task") o.light_paths_per_task = std::stoi(v);
+        if (a == "--mlt-bootstrap") o.mlt_bootstrap = std::stoi(v);
+        if (a == "--mlt-chains") o.mlt_chains = std::stoi(v);
+        if (a == "--p-large") o.mlt_p_large = std::stof(v);
     }
     return ToProto(o);
 }

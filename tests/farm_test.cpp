@@ -142,6 +142,43 @@ TEST_F(FarmTest, LightTracingMatchesTheLocalRender) {
     ExpectSameImage(RenderLocal(light), Download(s, job, 0));
 }
 
+// Bidirectional path tracing on the farm: a light-path stage of splat tasks (the t = 1
+// strategies) and the render stage's tiles (every other strategy) trace the same light
+// subpaths, and the frame is their sum, as the local runner makes it.
+TEST_F(FarmTest, BdptMatchesTheLocalRender) {
+    const std::vector<std::string> bdpt =
+        Concat(kSmall, {"--integrator", "bdpt", "--light-paths-per-task", "2048"});
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    StartWorker(port, "w1", 1);
+    StartWorker(port, "w2", 1);
+    Stubs s(port);
+    const std::string job = SubmitCornell(s, bdpt);
+    v1::JobStatus status;
+    ASSERT_TRUE(WaitDone(s, job, &status));
+    ExpectSameImage(RenderLocal(bdpt), Download(s, job, 0));
+}
+
+// Metropolis light transport on the farm: the bootstrap stage's batches merge (on the
+// coordinator) into b and the chains' starts, which every chain task reads; the chains'
+// splat buffers sum to the local render's image, bit for bit.
+TEST_F(FarmTest, MltMatchesTheLocalRender) {
+    const std::vector<std::string> mlt =
+        Concat(kSmall, {"--integrator", "mlt", "--max-depth", "5", "--mlt-bootstrap", "4000",
+                        "--mlt-chains", "48"});
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    StartWorker(port, "w1", 1);
+    StartWorker(port, "w2", 1);
+    Stubs s(port);
+    const std::string job = SubmitCornell(s, mlt);
+    v1::JobStatus status;
+    ASSERT_TRUE(WaitDone(s, job, &status));
+    // 32 bootstrap batches and 32 tasks of chains (48 chains, 2 to a task: 24).
+    EXPECT_EQ(status.tasks_total(), 32 + 24);
+    ExpectSameImage(RenderLocal(mlt), Download(s, job, 0));
+}
+
 // The README's command: a whole farm on this machine, two frames.
 TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
     fs::path out = dir_ / "frames";

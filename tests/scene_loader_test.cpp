@@ -345,6 +345,68 @@ TEST(SceneFormat, Overrides) {
     EXPECT_THROW(LoadSceneFile(ExampleScene("cornell-box"), unknown), SceneError);
 }
 
+TEST(SceneFormat, MltOptions) {
+    TempDir dir;
+    const std::string path = dir.Write(
+        "scene.json", MinimalScene(R"("render": {"mlt": {"bootstrap_samples": 5000, "chains": 64,
+                                                         "p_large": 0.125}})"));
+    LoadedScene s = LoadSceneFile(path);
+    EXPECT_EQ(s.settings.mlt.bootstrap_samples, 5000);
+    EXPECT_EQ(s.settings.mlt.chains, 64);
+    EXPECT_EQ(s.settings.mlt.p_large, 0.125f);
+    // Keys the block leaves out keep their defaults.
+    s = LoadSceneFile(
+        dir.Write("partial.json", MinimalScene(R"("render": {"mlt": {"chains": 8}})")));
+    EXPECT_EQ(s.settings.mlt.chains, 8);
+    EXPECT_EQ(s.settings.mlt.bootstrap_samples, MltOptions{}.bootstrap_samples);
+    EXPECT_EQ(s.settings.mlt.p_large, MltOptions{}.p_large);
+
+    // The command line replaces the file's values, within the same ranges.
+    RenderOverrides o;
+    o.mlt_bootstrap = 7;
+    o.mlt_chains = 3;
+    o.mlt_p_large = 1.0f;
+    s = LoadSceneFile(path, o);
+    EXPECT_EQ(s.settings.mlt.bootstrap_samples, 7);
+    EXPECT_EQ(s.settings.mlt.chains, 3);
+    EXPECT_EQ(s.settings.mlt.p_large, 1.0f);
+    for (float p : {0.0f, -0.5f, 1.5f}) {
+        RenderOverrides bad;
+        bad.mlt_p_large = p;
+        try {
+            LoadSceneFile(path, bad);
+            ADD_FAILURE() << "p_large " << p << " accepted";
+        } catch (const SceneError& e) {
+            EXPECT_EQ(e.Where(), "command line");
+            EXPECT_NE(std::string(e.what()).find("p_large"), std::string::npos) << e.what();
+        }
+    }
+    RenderOverrides no_chains;
+    no_chains.mlt_chains = 0;
+    EXPECT_THROW(LoadSceneFile(path, no_chains), SceneError);
+    RenderOverrides too_many;
+    too_many.mlt_chains = (1 << 20) + 1;
+    EXPECT_THROW(LoadSceneFile(path, too_many), SceneError);
+}
+
+TEST(SceneErrors, MltBlock) {
+    ExpectError(MinimalScene(R"("render": {"mlt": {"p_large": 0}})"), "/render/mlt/p_large",
+                "must be in (0, 1], got 0");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"p_large": 1.5}})"), "/render/mlt/p_large",
+                "must be in (0, 1], got 1.5");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"chains": 0}})"), "/render/mlt/chains",
+                "between 1 and");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"chains": 2000000}})"), "/render/mlt/chains",
+                "between 1 and");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"bootstrap_samples": 0}})"),
+                "/render/mlt/bootstrap_samples", "between 1 and");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"p_larg": 0.5}})"), "/render/mlt/p_larg",
+                "unknown key 'p_larg' (did you mean 'p_large'?)");
+    ExpectError(MinimalScene(R"("render": {"mlt": {"mutations": 5}})"), "/render/mlt/mutations",
+                "unknown key 'mutations'");
+    ExpectError(MinimalScene(R"("render": {"mlt": 3})"), "/render/mlt", "expected an object");
+}
+
 TEST(SceneFormat, RelativePathsResolveAgainstTheSceneFile) {
     TempDir dir;
     dir.Write("a/b/mesh.obj", kTriangleObj);
@@ -690,6 +752,7 @@ std::vector<RecordCase> EveryRecordKind() {
         {"photon", MinimalScene(R"("render": {"photon": {@"batches": 1}})"), "/render/photon"},
         {"irradiance_cache", MinimalScene(R"("render": {"irradiance_cache": {@"passes": 1}})"),
          "/render/irradiance_cache"},
+        {"mlt", MinimalScene(R"("render": {"mlt": {@"chains": 1}})"), "/render/mlt"},
         {"camera", R"({"camera": {@"eye": [0, 0, 5], "target": [0, 0, 0]}})", "/camera"},
         {"transform", WithShape(rect + R"({@"translate": [0, 1, 0]}})"), "/shapes/0/transform"},
         {"transform step", WithShape(rect + R"([{"scale": 2}, {@"translate": [0, 1, 0]}]})"),

@@ -176,6 +176,34 @@ TEST(SplatPlanTest, BandsCoverTheImageOnce) {
     EXPECT_EQ(path.stages.back().num_tasks, static_cast<int>(path.tiles.size()));
 }
 
+// The coordinator keeps a job's MLT settings through the settings codec: what it decodes
+// is, bit for bit, what was encoded.
+TEST(SplatPlanTest, SettingsCodecKeepsMltOptions) {
+    RenderSettings s;
+    s.integrator = "mlt";
+    s.mlt.bootstrap_samples = 123457;
+    s.mlt.chains = 77;
+    s.mlt.p_large = 0.1f;  // not exact in binary: the shortest form must give the same bits
+    const std::string text = EncodeRenderSettings(s);
+    EXPECT_NE(text.find("mlt.bootstrap_samples = 123457\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("mlt.chains = 77\n"), std::string::npos) << text;
+    const RenderSettings back = DecodeRenderSettings(text);
+    EXPECT_EQ(back.integrator, "mlt");
+    EXPECT_EQ(back.mlt.bootstrap_samples, 123457);
+    EXPECT_EQ(back.mlt.chains, 77);
+    EXPECT_EQ(std::memcmp(&back.mlt.p_large, &s.mlt.p_large, sizeof(float)), 0) << back.mlt.p_large;
+    for (float p : {std::nextafter(0.0f, 1.0f), std::nextafter(0.3f, 1.0f), 1.0f / 3, 1.0f}) {
+        s.mlt.p_large = p;
+        const float q = DecodeRenderSettings(EncodeRenderSettings(s)).mlt.p_large;
+        EXPECT_EQ(std::memcmp(&q, &p, sizeof(float)), 0) << p << " became " << q;
+    }
+    // Settings written before MLT existed decode to its defaults.
+    const RenderSettings old = DecodeRenderSettings("integrator = path\nspp = 4\n");
+    EXPECT_EQ(old.mlt.bootstrap_samples, MltOptions{}.bootstrap_samples);
+    EXPECT_EQ(old.mlt.chains, MltOptions{}.chains);
+    EXPECT_EQ(old.mlt.p_large, MltOptions{}.p_large);
+}
+
 TEST(SplatPlanTest, CheckTaskResultKnowsSplatResults) {
     const RenderPlan plan = MakeRenderPlan(Vec2i(8, 4), LightSettings(1 << 18));
     ASSERT_EQ(plan.stages[0].num_tasks, 4);

@@ -34,9 +34,12 @@ struct IrradianceArtifact final : Artifact {
     IrradianceCache cache;
 };
 
+struct MltBootstrap;  // integrator/mlt.h
+
 struct FrameInputs {
     const PhotonMapsArtifact* photons = nullptr;
     const IrradianceCache* irradiance = nullptr;  // shared records of earlier passes
+    const MltBootstrap* mlt = nullptr;            // b and the chains' starts
 };
 
 }  // namespace tessera

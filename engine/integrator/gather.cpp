@@ -24,6 +24,10 @@ class StreamSampler final : public Sampler {
         return Vec2(x, rng_.NextFloat());
     }
     Vec2 GetPixel2D() override { return Get2D(); }
+    uint64_t Dimension() const override { return 0; }
+    void SetDimension(uint64_t) override {
+        throw std::logic_error("a stream sampler has no dimensions to jump between");
+    }
     std::unique_ptr<Sampler> Clone() const override {
         throw std::logic_error("a stream sampler is not cloned");
     }

@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "integrator/bdpt.h"
 #include "integrator/gather.h"
 #include "integrator/light_tracer.h"
 #include "integrator/path.h"
@@ -10,7 +11,7 @@ namespace tessera {
 
 const char* const* IntegratorNames() {
     static const char* const kNames[] = {"path",  "direct", "photon", "irradiance-cache",
-                                         "light", nullptr};
+                                         "light", "bdpt",   "mlt",    nullptr};
     return kNames;
 }
 
@@ -23,6 +24,8 @@ bool UsesPhotonMaps(const RenderSettings& s) { return s.integrator == "photon"; 
 bool TracesLightPaths(const RenderSettings& s) { return s.integrator == "light"; }
 
 bool TracesLightSubpaths(const RenderSettings& s) { return s.integrator == "bdpt"; }
+
+bool UsesMlt(const RenderSettings& s) { return s.integrator == "mlt"; }
 
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs) {
@@ -38,8 +41,10 @@ std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const
     if (name == "irradiance-cache")
         return std::make_unique<GatherIntegrator>(scene, settings, inputs);
     if (name == "light") return std::make_unique<LightTracerIntegrator>(scene, is);
-    throw std::invalid_argument("unknown integrator '" + name +
-                                "' (known: path, direct, photon, irradiance-cache, light)");
+    if (name == "bdpt" || name == "mlt") return std::make_unique<BdptIntegrator>(scene, is);
+    throw std::invalid_argument(
+        "unknown integrator '" + name +
+        "' (known: path, direct, photon, irradiance-cache, light, bdpt, mlt)");
 }
 
 }  // namespace tessera

@@ -64,7 +64,10 @@ class Integrator {
 // one bounce of direct light, with MIS; specular chains followed), "photon" (Jensen's
 // photon mapping with final gathering; needs `inputs.photons`), "irradiance-cache"
 // (path-traced direct light, indirect diffuse light from Ward's irradiance cache) and
-// "light" (light tracing, integrator/light_tracer.h: renders with SplatPath).
+// "light" (light tracing, integrator/light_tracer.h: renders with SplatPath), "bdpt"
+// (bidirectional path tracing, integrator/bdpt.h) and "mlt" (Metropolis light transport,
+// integrator/mlt.h: its chains run outside this interface; here it makes the BDPT
+// integrator its paths come from, for the AOVs).
 // Throws std::invalid_argument for an unknown name or a missing input.
 std::unique_ptr<Integrator> MakeIntegrator(const RenderSettings& settings, const Scene& scene,
                                            const FrameInputs& inputs = {});
@@ -81,5 +84,9 @@ bool TracesLightPaths(const RenderSettings& settings);
 // stage of splat tasks (SplatPath: the t = 1 strategies) before the render stage's tiles
 // (Li: every other strategy), over the same sample streams.
 bool TracesLightSubpaths(const RenderSettings& settings);
+// Whether the integrator is Metropolis light transport (integrator/mlt.h): its plan has a
+// bootstrap stage, and its render stage's splat tasks run Markov chains, not Li or
+// SplatPath.
+bool UsesMlt(const RenderSettings& settings);
 
 }  // namespace tessera

@@ -21,7 +21,7 @@ std::optional<LightLiSample> AreaSampleToSolidAngle(const LightSampleContext& ct
     float cos_light = Dot(n, -wi);
     if (!two_sided && cos_light <= 0) return std::nullopt;
     if (cos_light == 0) return std::nullopt;
-    return LightLiSample{radiance, wi, dist2 / (std::abs(cos_light) * area), p};
+    return LightLiSample{radiance, wi, dist2 / (std::abs(cos_light) * area), p, n};
 }
 
 // A direction leaving a surface point with normal n: cosine-weighted on the front side,
@@ -155,7 +155,7 @@ class SphereAreaLight final : public Light {
         Vec3 p_light = center_ + n * radius_;
         Vec3 wi = Normalize(p_light - ctx.p);
         float pdf = 1 / (2 * kPi * one_minus_cos_max);
-        return LightLiSample{radiance_, wi, pdf, p_light};
+        return LightLiSample{radiance_, wi, pdf, p_light, n};
     }
 
     float PdfLi(const LightSampleContext& ctx, const Vec3& wi, const Vec3& p_light,

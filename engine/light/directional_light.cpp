@@ -20,7 +20,8 @@ class DirectionalLight final : public Light {
     }
 
     std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2) const override {
-        return LightLiSample{irradiance_, w_light_, 1, ctx.p + w_light_ * (2 * scene_radius_)};
+        return LightLiSample{irradiance_, w_light_, 1, ctx.p + w_light_ * (2 * scene_radius_),
+                             Vec3()};
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return 0;

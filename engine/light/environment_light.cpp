@@ -22,7 +22,8 @@ class ConstantEnvironmentLight final : public Light {
 
     std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2 u) const override {
         Vec3 wi = SampleUniformSphere(u);
-        return LightLiSample{radiance_, wi, UniformSpherePdf(), ctx.p + wi * (2 * scene_radius_)};
+        return LightLiSample{radiance_, wi, UniformSpherePdf(), ctx.p + wi * (2 * scene_radius_),
+                             Vec3()};
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return UniformSpherePdf();

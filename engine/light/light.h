@@ -31,6 +31,8 @@ struct LightLiSample {
     float pdf = 0;  // solid-angle density; 1 for delta lights
     Vec3 p_light;   // the point on the light; for directional and infinite lights, a point
                     // beyond the scene along wi
+    Vec3 n_light;   // area lights: the surface normal at p_light (as SampleLe reports it);
+                    // zero for every other light
 };
 
 // A ray leaving the light, for light paths (photons, light tracing, BDPT).

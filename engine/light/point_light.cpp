@@ -16,7 +16,7 @@ class PointLight final : public Light {
         Vec3 d = p_ - ctx.p;
         float dist2 = LengthSquared(d);
         if (dist2 == 0) return std::nullopt;
-        return LightLiSample{intensity_ / dist2, d / std::sqrt(dist2), 1, p_};
+        return LightLiSample{intensity_ / dist2, d / std::sqrt(dist2), 1, p_, Vec3()};
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return 0;

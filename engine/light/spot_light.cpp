@@ -29,7 +29,7 @@ class SpotLight final : public Light {
         Vec3 wi = d / std::sqrt(dist2);
         float falloff = Falloff(Dot(-wi, axis_));
         if (falloff == 0) return std::nullopt;
-        return LightLiSample{intensity_ * (falloff / dist2), wi, 1, p_};
+        return LightLiSample{intensity_ * (falloff / dist2), wi, 1, p_, Vec3()};
     }
     float PdfLi(const LightSampleContext&, const Vec3&, const Vec3&, const Vec3&) const override {
         return 0;

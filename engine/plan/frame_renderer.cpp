@@ -4,10 +4,15 @@
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
+#include <algorithm>
+#include <map>
 #include <stdexcept>
+#include <thread>
 
 #include "core/rng.h"
+#include "integrator/bdpt.h"
 #include "integrator/gather.h"
+#include "integrator/mlt.h"
 #include "photon/photon_tracer.h"
 #include "plan/stage_results.h"
 #include "sampler/time_pattern.h"
@@ -122,8 +127,11 @@ FrameInputs FrameRenderer::Inputs(int stage, const ArtifactSet& artifacts) const
                                                     plan_.stages[r].name));
         if (plan_.stages[r].kind == StageKind::kPhotons)
             in.photons = dynamic_cast<const PhotonMapsArtifact*>(a);
-        else if (plan_.stages[r].kind == StageKind::kIrradiance)
+        else if (plan_.stages[r].kind == StageKind::kIrradiance) {
             if (auto* ic = dynamic_cast<const IrradianceArtifact*>(a)) in.irradiance = &ic->cache;
+        } else if (plan_.stages[r].kind == StageKind::kMltBootstrap) {
+            if (auto* m = dynamic_cast<const MltArtifact*>(a)) in.mlt = &m->bootstrap;
+        }
     }
     return in;
 }
@@ -144,6 +152,8 @@ std::shared_ptr<const Artifact> FrameRenderer::LoadArtifact(int stage,
                                        GatherIntegrator::PhotonRadius(settings_, scene_.Bounds()));
         return maps;
     }
+    if (plan_.stages[stage].kind == StageKind::kMltBootstrap)
+        return std::make_shared<MltArtifact>(DecodeMltBootstrap(bytes));
     IrradianceCache cache(scene_.Bounds(),
                           GatherIntegrator::CacheSettings(settings_, scene_.Bounds()));
     for (const IrradianceRecord& r : DecodeIrradianceRecords(bytes)) cache.Add(r);
@@ -168,10 +178,15 @@ std::string FrameRenderer::RunTask(int stage, int task_index, const ArtifactSet&
         case StageKind::kIrradiance:
             result = RunIrradianceTask(stage, task_index, artifacts, arena);
             break;
+        case StageKind::kMltBootstrap:
+            result = RunMltBootstrapTask(task_index, arena);
+            break;
         case StageKind::kLightPaths:
         case StageKind::kRender: {
             if (s.task_kind == TaskKind::kSplat) {
-                result = EncodeSplatResult(RenderSplatTask(task_index, arena, artifacts));
+                result = EncodeSplatResult(UsesMlt(settings_)
+                                               ? RunMltChains(task_index, arena, artifacts)
+                                               : RenderSplatTask(task_index, arena, artifacts));
                 break;
             }
             TileFilm film = RenderTile(plan_.tiles[task_index], arena, artifacts);
@@ -210,6 +225,38 @@ SplatResult FrameRenderer::RenderSplatTask(int task_index, ScratchBuffer& arena,
                 integrator->SplatPath(*sampler, time, arena, film, state.get());
                 arena.Reset();
             }
+    return SplatResult{task_index, resolution_, std::move(film.MutableData())};
+}
+
+std::string FrameRenderer::RunMltBootstrapTask(int task_index, ScratchBuffer& arena) const {
+    const MltPlan& m = plan_.mlt;
+    MltBootstrapTaskResult r;
+    r.task_index = task_index;
+    r.first = int64_t(task_index) * m.states_per_task;
+    r.depths = m.max_depth + 1;
+    const int64_t count = std::min(m.states_per_task, m.bootstrap_states - r.first);
+    const MltPathEvaluator evaluator(scene_, m.max_depth);
+    r.weights = MltBootstrapWeights(evaluator, m.frame_key, MltParameters{m.p_large}, r.first,
+                                    count, arena);
+    return EncodeMltBootstrapTask(r);
+}
+
+SplatResult FrameRenderer::RunMltChains(int task_index, ScratchBuffer& arena,
+                                        const ArtifactSet& artifacts) const {
+    SetFloatingPointMode();
+    const FrameInputs inputs = Inputs(plan_.RenderStageIndex(), artifacts);
+    if (!inputs.mlt) throw std::invalid_argument("the MLT chains need the bootstrap's artifact");
+    const MltPlan& m = plan_.mlt;
+    // b over the mutations per pixel: every chain's mutations, spread over the image.
+    const double mutations = double(m.chains) * double(m.mutations_per_chain);
+    const double pixels = double(resolution_.x) * double(resolution_.y);
+    SplatFilm film(resolution_, *filter_, static_cast<float>(inputs.mlt->b * pixels / mutations));
+    const MltPathEvaluator evaluator(scene_, m.max_depth);
+    const int first = task_index * m.chains_per_task;
+    const int last = std::min(m.chains, first + m.chains_per_task);
+    for (int c = first; c < last; ++c)
+        RunMltChain(evaluator, m.frame_key, MltParameters{m.p_large}, *inputs.mlt, c,
+                    m.mutations_per_chain, arena, film);
     return SplatResult{task_index, resolution_, std::move(film.MutableData())};
 }
 
@@ -301,6 +348,150 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
     }
     rays_ += Scene::ThreadRayCount() - rays_before;
     return film;
+}
+
+StrategyImages FrameRenderer::RenderStrategyImages(int max_length, int threads) const {
+    if (!TracesLightSubpaths(settings_))
+        throw std::invalid_argument("strategy images need the bdpt integrator");
+    max_length = std::clamp(max_length, 0, settings_.max_depth);
+    SetFloatingPointMode();
+    const BdptIntegrator bdpt(scene_, IntegratorSettings{settings_.max_depth, settings_.rr_depth,
+                                                         settings_.rr_threshold});
+    const int w = resolution_.x, h = resolution_.y;
+    const size_t pixels = size_t(w) * h;
+    if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    threads = std::max(1, std::min(threads, h));
+
+    // Per thread: sums per strategy (weighted and unweighted RGB), t = 1 splats per s; the
+    // paths longer than max_length in `rest`. Summed over threads in thread order.
+    struct Sums {
+        std::map<std::pair<int, int>, std::vector<double>> weighted, unweighted;
+        std::map<int, std::unique_ptr<SplatFilm>> splat_weighted, splat_unweighted;
+        std::vector<double> rest;
+        std::unique_ptr<SplatFilm> rest_splats;
+    };
+    const float splat_scale = 1.0f / static_cast<float>(settings_.spp);
+    std::vector<Sums> sums(threads);
+    auto band = [&](int k) {
+        SetFloatingPointMode();
+        Sums& out = sums[k];
+        out.rest.assign(pixels * 3, 0.0);
+        out.rest_splats = std::make_unique<SplatFilm>(resolution_, *filter_, splat_scale);
+        auto buffer = [&](std::map<std::pair<int, int>, std::vector<double>>& m, int s, int t) {
+            std::vector<double>& b = m[{s, t}];
+            if (b.empty()) b.assign(pixels * 3, 0.0);
+            return b.data();
+        };
+        auto splats = [&](std::map<int, std::unique_ptr<SplatFilm>>& m, int s) -> SplatFilm& {
+            std::unique_ptr<SplatFilm>& f = m[s];
+            if (!f) f = std::make_unique<SplatFilm>(resolution_, *filter_, splat_scale);
+            return *f;
+        };
+        ScratchBuffer arena;
+        std::unique_ptr<Sampler> sampler = sampler_->Clone();
+        const Camera& camera = scene_.GetCamera();
+        const ShutterTimes times(settings_);
+        const int y0 = h * k / threads, y1 = h * (k + 1) / threads;
+        for (int y = y0; y < y1; ++y)
+            for (int x = 0; x < w; ++x) {
+                const size_t at = (size_t(y) * w + x) * 3;
+                const BdptStrategySink tiles = [&](int s, int t, const Rgb& c, float weight, Vec2) {
+                    double* dst = s + t - 2 <= max_length ? buffer(out.weighted, s, t) + at
+                                                          : out.rest.data() + at;
+                    const Rgb v = c * weight;
+                    dst[0] += v.r;
+                    dst[1] += v.g;
+                    dst[2] += v.b;
+                    if (s + t - 2 > max_length) return;
+                    double* u = buffer(out.unweighted, s, t) + at;
+                    u[0] += c.r;
+                    u[1] += c.g;
+                    u[2] += c.b;
+                };
+                const BdptStrategySink splat = [&](int s, int t, const Rgb& c, float weight,
+                                                   Vec2 p) {
+                    if (s + t - 2 > max_length) {
+                        out.rest_splats->AddSplat(p, c * weight);
+                        return;
+                    }
+                    splats(out.splat_weighted, s).AddSplat(p, c * weight);
+                    splats(out.splat_unweighted, s).AddSplat(p, c);
+                };
+                for (int i = 0; i < settings_.spp; ++i) {
+                    // The frame's own sample streams and camera samples (RenderTile,
+                    // RenderSplatTask).
+                    sampler->StartPixelSample(Vec2i(x, y), i);
+                    CameraSample cs;
+                    const Vec2 u = sampler->GetPixel2D();
+                    cs.p_film = Vec2(x + u.x, y + u.y);
+                    cs.p_lens = sampler->Get2D();
+                    cs.time = times.Sample(*sampler, u, Vec2i(x, y), i);
+                    bdpt.LiStrategies(camera.GenerateRay(cs), *sampler, arena, &tiles);
+                    bdpt.SplatStrategies(*sampler, cs.time, arena, splat);
+                    arena.Reset();
+                }
+            }
+    };
+    std::vector<std::thread> pool;
+    for (int k = 1; k < threads; ++k) pool.emplace_back(band, k);
+    band(0);
+    for (std::thread& t : pool) t.join();
+
+    auto rgb_image = [&]() {
+        Image image;
+        image.width = w;
+        image.height = h;
+        image.channels = {"R", "G", "B"};
+        image.pixels.assign(pixels * 3, 0.0f);
+        return image;
+    };
+    // Pixel averages of the tile strategies plus the splats, summed over the threads.
+    auto resolve = [&](auto tile_sums, auto splat_films) {
+        Image image = rgb_image();
+        for (size_t i = 0; i < pixels * 3; ++i) {
+            double v = 0;
+            for (const Sums& t : sums) {
+                if (const std::vector<double>* b = tile_sums(t)) v += (*b)[i] / settings_.spp;
+                if (const SplatFilm* f = splat_films(t)) v += f->Data()[i];
+            }
+            image.pixels[i] = static_cast<float>(v);
+        }
+        return image;
+    };
+    StrategyImages out;
+    out.max_length = max_length;
+    for (int length = 0; length <= max_length; ++length)
+        for (int s = 0; s <= length + 1; ++s) {
+            const int t = length + 2 - s;
+            if (t < 1 || (s == 1 && t == 1)) continue;
+            const std::pair<int, int> key{s, t};
+            bool any = false;
+            for (const Sums& th : sums)
+                any |= t == 1 ? th.splat_weighted.count(s) > 0 : th.weighted.count(key) > 0;
+            if (!any) continue;
+            StrategyImage img;
+            img.s = s;
+            img.t = t;
+            for (int kind = 0; kind < 2; ++kind) {
+                const bool weighted = kind == 0;
+                Image image = resolve(
+                    [&](const Sums& th) -> const std::vector<double>* {
+                        const auto& m = weighted ? th.weighted : th.unweighted;
+                        auto it = m.find(key);
+                        return t >= 2 && it != m.end() ? &it->second : nullptr;
+                    },
+                    [&](const Sums& th) -> const SplatFilm* {
+                        const auto& m = weighted ? th.splat_weighted : th.splat_unweighted;
+                        auto it = m.find(s);
+                        return t == 1 && it != m.end() ? it->second.get() : nullptr;
+                    });
+                (weighted ? img.weighted : img.unweighted) = std::move(image);
+            }
+            out.strategies.push_back(std::move(img));
+        }
+    out.rest = resolve([](const Sums& th) { return &th.rest; },
+                       [](const Sums& th) -> const SplatFilm* { return th.rest_splats.get(); });
+    return out;
 }
 
 TileResult ExecuteTileTask(const FrameRenderer& renderer, int task_index, ScratchBuffer& arena,

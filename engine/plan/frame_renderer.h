@@ -22,6 +22,22 @@
 
 namespace tessera {
 
+// BDPT's strategies apart (integrator/bdpt.h): for each (s, t) of paths of at most
+// max_length bounces, its image weighted by MIS (its share of the frame) and unweighted
+// (the strategy's own estimate of what it can sample); `rest` is the weighted sum of the
+// longer paths. RGB images; a pixel's samples are averaged with a box over the pixel,
+// and t = 1 splats go through the frame's filter. The weighted images and `rest` sum to
+// the frame (exactly so with the default one-pixel box filter).
+struct StrategyImage {
+    int s = 0, t = 0;
+    Image weighted, unweighted;
+};
+struct StrategyImages {
+    int max_length = 0;
+    std::vector<StrategyImage> strategies;  // by length, then s
+    Image rest;
+};
+
 // The artifacts a task reads, by stage index (null where the task reads nothing).
 using ArtifactSet = std::vector<std::shared_ptr<const Artifact>>;
 
@@ -52,6 +68,11 @@ class FrameRenderer {
     TileFilm RenderTile(const PixelBounds& tile, ScratchBuffer& arena,
                         const ArtifactSet& artifacts = {}) const;
 
+    // BDPT only: renders the frame's sample streams again with every strategy kept apart,
+    // on `threads` threads (0: all cores). Throws std::invalid_argument for another
+    // integrator.
+    StrategyImages RenderStrategyImages(int max_length, int threads) const;
+
     // Rays traced so far by this renderer's tasks (camera, bounce and shadow rays).
     uint64_t RaysTraced() const { return rays_.load(); }
 
@@ -60,6 +81,10 @@ class FrameRenderer {
     std::string RunIrradianceTask(int stage, int task_index, const ArtifactSet& artifacts,
                                   ScratchBuffer& arena) const;
     std::string RunPhotonTask(int task_index, ScratchBuffer& arena) const;
+    std::string RunMltBootstrapTask(int task_index, ScratchBuffer& arena) const;
+    // Runs the Markov chains of MLT render task `task_index`.
+    SplatResult RunMltChains(int task_index, ScratchBuffer& arena,
+                             const ArtifactSet& artifacts) const;
     // Traces the light paths of splat task `task_index`'s band of sample streams.
     SplatResult RenderSplatTask(int task_index, ScratchBuffer& arena,
                                 const ArtifactSet& artifacts) const;

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "core/rng.h"
 #include "integrator/integrator.h"
 
 namespace tessera {
@@ -124,6 +125,37 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
         light.label = "light paths";
         plan.stages.push_back(light);
     }
+    if (UsesMlt(settings)) {
+        const MltOptions& m = settings.mlt;
+        if (m.bootstrap_samples < 1)
+            throw std::invalid_argument("MLT needs at least 1 bootstrap sample");
+        if (m.chains < 1) throw std::invalid_argument("MLT needs at least 1 chain");
+        if (!(m.p_large > 0 && m.p_large <= 1))
+            throw std::invalid_argument("the MLT large-step probability must be in (0, 1]");
+        MltPlan& mp = plan.mlt;
+        mp.bootstrap_states = m.bootstrap_samples;
+        const int64_t boot_tasks = std::min<int64_t>(m.bootstrap_samples, kMaxMltTasks);
+        mp.states_per_task = (mp.bootstrap_states + boot_tasks - 1) / boot_tasks;
+        mp.chains = m.chains;
+        const int chain_tasks = std::min(m.chains, kMaxMltTasks);
+        mp.chains_per_task = (m.chains + chain_tasks - 1) / chain_tasks;
+        const int64_t mutations =
+            int64_t(std::max(1, resolution.x)) * std::max(1, resolution.y) * int64_t(settings.spp);
+        mp.mutations_per_chain = std::max<int64_t>(1, (mutations + m.chains - 1) / m.chains);
+        mp.max_depth = settings.max_depth;
+        mp.frame_key = Hash(settings.seed, settings.frame);
+        mp.p_large = m.p_large;
+        StagePlan boot;
+        boot.name = kMltBootstrapStage;
+        boot.kind = StageKind::kMltBootstrap;
+        boot.task_kind = TaskKind::kBatch;
+        boot.num_tasks =
+            static_cast<int>((mp.bootstrap_states + mp.states_per_task - 1) / mp.states_per_task);
+        boot.produces_artifact = true;
+        boot.label = "MLT bootstrap";
+        render_reads.push_back(static_cast<int>(plan.stages.size()));
+        plan.stages.push_back(boot);
+    }
     StagePlan render;
     render.name = kRenderStage;
     render.kind = StageKind::kRender;
@@ -135,6 +167,12 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
         render.task_kind = TaskKind::kSplat;
         render.num_tasks = SplatTasks(resolution, settings, &plan.splat_rows);
         render.label = "light paths";
+    }
+    if (UsesMlt(settings)) {
+        render.task_kind = TaskKind::kSplat;
+        render.num_tasks =
+            (plan.mlt.chains + plan.mlt.chains_per_task - 1) / plan.mlt.chains_per_task;
+        render.label = "MLT chains";
     }
     plan.stages.push_back(render);
     return plan;

@@ -16,6 +16,8 @@
 //   photon              photons [, irradiance-1 .. irradiance-P], render
 //   light               render (splat tasks: bands of light-path streams)
 //   bdpt                light-paths (splat tasks), render (tiles)
+//   mlt                 mlt-bootstrap (batches of bootstrap states), render (splat tasks:
+//                       groups of Markov chains)
 //
 // A splat task traces the light paths of a band of image rows' sample streams: stream
 // (x, y) with sample index i < spp names the path's random numbers (as a camera sample's
@@ -41,6 +43,7 @@ inline constexpr const char* kRenderStage = "render";
 inline constexpr const char* kPhotonStage = "photons";
 inline constexpr const char* kIrradianceStagePrefix = "irradiance-";
 inline constexpr const char* kLightPathStage = "light-paths";
+inline constexpr const char* kMltBootstrapStage = "mlt-bootstrap";
 
 enum class TaskKind {
     kTile,   // one tile of the image
@@ -50,7 +53,8 @@ enum class TaskKind {
 
 // kLightPaths: splat tasks that add to the frame beside the render stage (BDPT's t = 1
 // strategies); their streams are the render stage's, so they share its light subpaths.
-enum class StageKind { kPhotons, kIrradiance, kRender, kLightPaths };
+// kMltBootstrap: batches of MLT bootstrap states, merged into b and the chains' starts.
+enum class StageKind { kPhotons, kIrradiance, kRender, kLightPaths, kMltBootstrap };
 
 struct StagePlan {
     std::string name;  // unique in the plan: "photons", "irradiance-2", "render"
@@ -69,6 +73,23 @@ struct StagePlan {
 // The fewest splat tasks a frame is split into (fewer only for images of fewer rows).
 inline constexpr int kMinSplatTasks = 16;
 
+// Metropolis light transport's split of its work (integrator/mlt.h): bootstrap task k
+// draws states [k * states_per_task, ...) of `bootstrap_states`, render task k runs chains
+// [k * chains_per_task, ...) of `chains`, each for mutations_per_chain mutations.
+struct MltPlan {
+    int64_t bootstrap_states = 0;
+    int64_t states_per_task = 0;
+    int chains = 0;
+    int chains_per_task = 0;
+    int64_t mutations_per_chain = 0;
+    int max_depth = 0;
+    uint64_t frame_key = 0;  // names the frame's MLT streams (seed and frame)
+    float p_large = 0.3f;
+};
+
+// The most tasks an MLT stage is split into.
+inline constexpr int kMaxMltTasks = 32;
+
 struct RenderPlan {
     int frame = 0;
     Vec2i resolution;
@@ -82,6 +103,7 @@ struct RenderPlan {
     // filter's apron, clipped to the image.
     std::vector<PixelBounds> tile_regions;
     std::vector<StagePlan> stages;
+    MltPlan mlt;  // integrator mlt only
     int TotalTasks() const;
     // Tasks of the stages before `stage`: a task's position among the frame's tasks is
     // StageOffset(stage) + its index in the stage.

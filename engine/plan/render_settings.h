@@ -98,8 +98,19 @@ inline std::optional<TimeSampler> ParseTimeSampler(std::string_view name) {
     return std::nullopt;
 }
 
+// Metropolis light transport (integrator "mlt", integrator/mlt.h). Its spp is the
+// mutations per pixel: all chains together make spp * width * height mutations.
+struct MltOptions {
+    // States drawn per path length to estimate the image's luminance b and to start the
+    // chains from.
+    int bootstrap_samples = 100000;
+    int chains = 1024;     // independent Markov chains
+    float p_large = 0.3f;  // probability that a mutation is a large step
+};
+
 struct RenderSettings {
-    std::string integrator = "path";  // path | direct | photon | irradiance-cache
+    // path | direct | photon | irradiance-cache | light | bdpt | mlt
+    std::string integrator = "path";
     int spp = 16;
     int max_depth = 64;  // longest path, counted in bounces
     int rr_depth = 3;    // Russian roulette starts after this many bounces
@@ -119,6 +130,7 @@ struct RenderSettings {
     Vec2i resolution{512, 512};
     PhotonOptions photon;
     IrradianceOptions irradiance;
+    MltOptions mlt;
     DebugView debug = DebugView::kNone;
 };
 
@@ -136,6 +148,8 @@ struct RenderOverrides {
     std::optional<float> ic_accuracy;
     std::optional<int> ic_samples, ic_passes;
     std::optional<bool> ic_gradients;
+    std::optional<int> mlt_bootstrap, mlt_chains;
+    std::optional<float> mlt_p_large;
     std::optional<DebugView> debug;
 };
 

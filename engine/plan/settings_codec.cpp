@@ -65,6 +65,9 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("irradiance.max_radius", s.irradiance.max_radius);
     put("irradiance.passes", s.irradiance.passes);
     put("irradiance.gradients", int(s.irradiance.gradients));
+    put("mlt.bootstrap_samples", s.mlt.bootstrap_samples);
+    put("mlt.chains", s.mlt.chains);
+    put("mlt.p_large", s.mlt.p_large);
     put("debug", DebugViewName(s.debug));
     return out;
 }
@@ -137,6 +140,9 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
     set["irradiance.max_radius"] = f(s.irradiance.max_radius);
     set["irradiance.passes"] = i(s.irradiance.passes);
     set["irradiance.gradients"] = b(s.irradiance.gradients);
+    set["mlt.bootstrap_samples"] = i(s.mlt.bootstrap_samples);
+    set["mlt.chains"] = i(s.mlt.chains);
+    set["mlt.p_large"] = f(s.mlt.p_large);
     set["debug"] = [&](const std::string& k, const std::string& v) {
         std::optional<DebugView> d = ParseDebugView(v);
         if (!d) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));

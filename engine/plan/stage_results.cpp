@@ -2,18 +2,22 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 
 #include "core/wire_format.h"
+#include "integrator/mlt.h"
 #include "photon/photon_tracer.h"
 #include "plan/render_plan.h"
 
 namespace tessera {
 namespace {
 
-constexpr uint32_t kIrradianceTaskMagic = 0x52545249;  // "IRTR"
-constexpr uint32_t kPhotonMapsMagic = 0x504d4850;      // "PHMP"
+constexpr uint32_t kIrradianceTaskMagic = 0x52545249;    // "IRTR"
+constexpr uint32_t kPhotonMapsMagic = 0x504d4850;        // "PHMP"
+constexpr uint32_t kMltBootstrapTaskMagic = 0x5442544d;  // "MTBT"
 constexpr uint32_t kVersion = 1;
 
 void CheckHeader(wire::Reader& r, uint32_t magic) {
@@ -67,6 +71,60 @@ void DecodePhotonMaps(const std::string& bytes, std::vector<Photon>* global,
     CheckEnd(r);
 }
 
+std::string EncodeMltBootstrapTask(const MltBootstrapTaskResult& result) {
+    std::string out;
+    wire::Writer w(&out);
+    w.U32(kMltBootstrapTaskMagic);
+    w.U32(kVersion);
+    w.I32(result.task_index);
+    w.U64(static_cast<uint64_t>(result.first));
+    w.I32(result.depths);
+    w.U64(result.weights.size());
+    for (float x : result.weights) w.F32(x);
+    return out;
+}
+
+MltBootstrapTaskResult DecodeMltBootstrapTask(const std::string& bytes) {
+    wire::Reader r(bytes, "MLT bootstrap task result");
+    CheckHeader(r, kMltBootstrapTaskMagic);
+    MltBootstrapTaskResult out;
+    out.task_index = r.I32();
+    out.first = static_cast<int64_t>(r.U64());
+    out.depths = r.I32();
+    const uint64_t n = r.U64();
+    if (n > r.Remaining() / 4) r.Fail("truncated");
+    if (out.first < 0 || out.depths < 1 || n % uint64_t(out.depths) != 0)
+        r.Fail("the weights are not whole states");
+    out.weights.resize(n);
+    for (float& x : out.weights) {
+        x = r.F32();
+        if (!std::isfinite(x) || x < 0) r.Fail("a weight is not a finite luminance");
+    }
+    CheckEnd(r);
+    return out;
+}
+
+namespace {
+
+// Checks an MLT bootstrap task's result against the plan: its task, its states, its depths.
+MltBootstrapTaskResult CheckedBootstrapTask(const RenderPlan& plan, int task_index,
+                                            const std::string& bytes) {
+    MltBootstrapTaskResult r = DecodeMltBootstrapTask(bytes);
+    const MltPlan& m = plan.mlt;
+    const int64_t first = int64_t(task_index) * m.states_per_task;
+    const int64_t count = std::min(m.states_per_task, m.bootstrap_states - first);
+    if (r.task_index != task_index || r.first != first || r.depths != m.max_depth + 1 ||
+        int64_t(r.weights.size()) != count * r.depths)
+        throw std::invalid_argument(fmt::format(
+            "the result holds bootstrap states [{}, {}) of {} depths as task {}; task {} has "
+            "states [{}, {}) of {}",
+            r.first, r.first + int64_t(r.weights.size()) / std::max(1, r.depths), r.depths,
+            r.task_index, task_index, first, first + count, m.max_depth + 1));
+    return r;
+}
+
+}  // namespace
+
 void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const std::string& bytes) {
     if (stage < 0 || stage >= static_cast<int>(plan.stages.size()))
         throw std::invalid_argument(fmt::format("stage {} does not exist", stage));
@@ -92,6 +150,9 @@ void CheckTaskResult(const RenderPlan& plan, int stage, int task_index, const st
                         "the result holds the records of tile {}, not {}", index, task_index));
                 return;
             }
+            case StageKind::kMltBootstrap:
+                CheckedBootstrapTask(plan, task_index, bytes);
+                return;
             case StageKind::kLightPaths:
             case StageKind::kRender: {
                 if (plan.stages[stage].task_kind == TaskKind::kSplat) {
@@ -147,6 +208,16 @@ std::string MergeStageResults(const RenderPlan& plan, int stage, const std::stri
             }
             PhotonMaps maps = MergePhotonBatches(batches);
             return EncodePhotonMaps(maps.global, maps.caustic);
+        }
+        if (s.kind == StageKind::kMltBootstrap) {
+            std::vector<float> weights;
+            for (size_t i = 0; i < results.size(); ++i) {
+                MltBootstrapTaskResult r =
+                    CheckedBootstrapTask(plan, static_cast<int>(i), results[i]);
+                weights.insert(weights.end(), r.weights.begin(), r.weights.end());
+            }
+            return EncodeMltBootstrap(MergeMltBootstrap(weights, plan.mlt.max_depth,
+                                                        plan.mlt.chains, plan.mlt.frame_key));
         }
         // Irradiance: the records of the passes before, then this pass's by tile.
         std::vector<IrradianceRecord> records;

@@ -4,6 +4,7 @@
 // their stages merge into. Little-endian, self-describing (magic number and version);
 // decoding checks every size and throws std::runtime_error on malformed bytes.
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -20,5 +21,16 @@ std::vector<IrradianceRecord> DecodeIrradianceTaskResult(const std::string& byte
 std::string EncodePhotonMaps(const std::vector<Photon>& global, const std::vector<Photon>& caustic);
 void DecodePhotonMaps(const std::string& bytes, std::vector<Photon>* global,
                       std::vector<Photon>* caustic);
+
+// An MLT bootstrap task: the luminances of states [first, first + count), depths 0..D per
+// state (D + 1 = depths), state-major.
+struct MltBootstrapTaskResult {
+    int task_index = 0;
+    int64_t first = 0;
+    int depths = 0;
+    std::vector<float> weights;
+};
+std::string EncodeMltBootstrapTask(const MltBootstrapTaskResult& result);
+MltBootstrapTaskResult DecodeMltBootstrapTask(const std::string& bytes);
 
 }  // namespace tessera

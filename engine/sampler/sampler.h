@@ -26,6 +26,12 @@ class Sampler {
     virtual Vec2 Get2D() = 0;
     // The sub-pixel position of the current sample; stratified over the pixel's samples.
     virtual Vec2 GetPixel2D() = 0;
+    // The dimension the next Get1D/Get2D draws, and a jump to another one within the same
+    // pixel sample: parts of a sample that draw a varying number of dimensions (BDPT's
+    // camera and light subpaths) each start at a fixed dimension, so that every dimension
+    // means the same thing in every sample of a pixel.
+    virtual uint64_t Dimension() const = 0;
+    virtual void SetDimension(uint64_t dim) = 0;
     virtual std::unique_ptr<Sampler> Clone() const = 0;
 };
 

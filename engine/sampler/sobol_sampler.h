@@ -95,6 +95,8 @@ class SobolSampler final : public Sampler {
     SobolSampler(int spp, uint64_t seed) : spp_(spp), seed_(seed) {}
     int SamplesPerPixel() const override { return spp_; }
     void StartPixelSample(Vec2i pixel, int sample_index, int dim = 0) override;
+    uint64_t Dimension() const override { return dim_; }
+    void SetDimension(uint64_t dim) override { dim_ = dim; }
     float Get1D() override;
     Vec2 Get2D() override;
     Vec2 GetPixel2D() override;

@@ -445,6 +445,16 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     ranged(o.ic_samples, 4, 1 << 20, "cache hemisphere samples", &s.irradiance.hemisphere_samples);
     ranged(o.ic_passes, 0, 8, "cache passes", &s.irradiance.passes);
     if (o.ic_gradients) s.irradiance.gradients = *o.ic_gradients;
+    ranged(o.mlt_bootstrap, 1, 1 << 30, "MLT bootstrap samples", &s.mlt.bootstrap_samples);
+    ranged(o.mlt_chains, 1, 1 << 20, "MLT chains", &s.mlt.chains);
+    if (o.mlt_p_large) {
+        if (!(*o.mlt_p_large > 0 && *o.mlt_p_large <= 1)) {
+            char value[32];
+            std::snprintf(value, sizeof(value), "%g", *o.mlt_p_large);
+            fail(std::string("MLT p_large must be in (0, 1], got ") + value);
+        }
+        s.mlt.p_large = *o.mlt_p_large;
+    }
     if (o.debug) s.debug = *o.debug;
     return s;
 }

@@ -21,8 +21,9 @@
 namespace tessera {
 
 const std::vector<std::string>& KnownIntegrators() {
-    static const std::vector<std::string> kNames = {"path", "direct", "photon", "irradiance-cache",
-                                                    "light"};
+    // Integrator::IntegratorNames() (integrator/integrator.h), which a test keeps equal.
+    static const std::vector<std::string> kNames = {"path",  "direct", "photon", "irradiance-cache",
+                                                    "light", "bdpt",   "mlt"};
     return kNames;
 }
 
@@ -255,6 +256,16 @@ IrradianceOptions ParseIrradianceCache(const JsonValue& v) {
     return c;
 }
 
+MltOptions ParseMlt(const JsonValue& v) {
+    JsonObject o = v.AsObject();
+    MltOptions m;
+    if (auto n = o.Get("bootstrap_samples")) m.bootstrap_samples = int(n->AsInt(1, 1 << 30));
+    if (auto n = o.Get("chains")) m.chains = int(n->AsInt(1, 1 << 20));
+    if (auto p = o.Get("p_large")) m.p_large = InRange(*p, 0, 1, true, false);
+    o.Finish("the mlt block");
+    return m;
+}
+
 RenderSettings ParseRender(const JsonValue& v) {
     JsonObject o = v.AsObject();
     RenderSettings r;
@@ -282,6 +293,7 @@ RenderSettings ParseRender(const JsonValue& v) {
     if (auto f = o.Get("filter")) r.filter = ParseFilter(*f);
     if (auto p = o.Get("photon")) r.photon = ParsePhoton(*p);
     if (auto c = o.Get("irradiance_cache")) r.irradiance = ParseIrradianceCache(*c);
+    if (auto m = o.Get("mlt")) r.mlt = ParseMlt(*m);
     if (auto d = o.Get("debug")) {
         int t = ParseEnum(*d, {"none", "photons", "records", "indirect"}, "debug view");
         r.debug = static_cast<DebugView>(t);

@@ -1,0 +1,123 @@
+#pragma once
+
+// Comparing renders: means and standard errors of per-pixel values, the pixels that see a
+// given material, and a block-by-block test that two unbiased renderers agree.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "film/image.h"
+#include "scene/scene.h"
+
+namespace tessera::test {
+
+struct Estimate {
+    double mean = 0, se = 0;
+    size_t n = 0;
+};
+
+// Mean and standard error of independent values.
+inline Estimate MeanOf(const std::vector<double>& v) {
+    Estimate e;
+    e.n = v.size();
+    if (v.empty()) return e;
+    for (double x : v) e.mean += x;
+    e.mean /= double(v.size());
+    double var = 0;
+    for (double x : v) var += (x - e.mean) * (x - e.mean);
+    if (v.size() > 1) e.se = std::sqrt(var / double(v.size() - 1) / double(v.size()));
+    return e;
+}
+
+// The hit of the ray through raster position p, if any.
+inline bool CameraHit(const Scene& scene, Vec2 p, SurfaceInteraction* si) {
+    return scene.Intersect(scene.GetCamera().GenerateRay(CameraSample{p, Vec2(0.5f, 0.5f), 0}), si);
+}
+
+// Pixels whose whole area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees a
+// surface of `material`: where a light tracer and a path tracer must agree. Elsewhere the
+// camera sees specular surfaces (which light paths cannot reach through a pinhole) or
+// emitters directly.
+inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* material) {
+    const Vec2i res = scene.GetCamera().Resolution();
+    std::vector<bool> mask(size_t(res.x) * res.y, true);
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x)
+            for (int j = 0; j < 8 && mask[y * res.x + x]; ++j)
+                for (int i = 0; i < 8; ++i) {
+                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
+                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
+                    SurfaceInteraction si;
+                    if (!CameraHit(scene, p, &si) || si.material != material) {
+                        mask[y * res.x + x] = false;
+                        break;
+                    }
+                }
+    return mask;
+}
+
+// One renderer's image (`light`) against another's (`path`, the reference), block by block (block x
+// block pixels, only the pixels in `mask`): the difference of the two images, pixel by pixel, has
+// mean zero, and its pixels are independent, so each block's mean difference is compared with its
+// standard error: within max_z of them (3.5 keeps the chance that one of 16 blocks fails
+// by chance near 1%), and the whole image's within 3. The test must also be able to see a bias of
+// `resolve` (relative): each block's standard error is at most resolve / 4 of its mean. Returns the
+// largest |z|.
+inline double ExpectBlocksAgree(const Image& light, const Image& path,
+                                const std::vector<bool>& mask, int block, double max_z,
+                                double resolve, bool verbose = false) {
+    EXPECT_EQ(light.width, path.width);
+    EXPECT_EQ(light.height, path.height);
+    double worst = 0;
+    int blocks = 0;
+    std::vector<double> all_diff, all_path;
+    for (int by = 0; by + block <= light.height; by += block)
+        for (int bx = 0; bx + block <= light.width; bx += block) {
+            std::vector<double> diff, reference;
+            for (int y = by; y < by + block; ++y)
+                for (int x = bx; x < bx + block; ++x) {
+                    if (!mask[y * light.width + x]) continue;
+                    for (int c = 0; c < 3; ++c) {
+                        diff.push_back(light.At(x, y, c) - path.At(x, y, c));
+                        reference.push_back(path.At(x, y, c));
+                    }
+                }
+            // Blocks mostly outside the mask say little; their pixels still count below.
+            all_diff.insert(all_diff.end(), diff.begin(), diff.end());
+            all_path.insert(all_path.end(), reference.begin(), reference.end());
+            if (diff.size() < size_t(3 * block * block / 2)) continue;
+            ++blocks;
+            const Estimate d = MeanOf(diff);
+            const double ref = MeanOf(reference).mean;
+            const double z = d.se > 0 ? d.mean / d.se : 0;
+            worst = std::max(worst, std::abs(z));
+            if (verbose)
+                std::printf(
+                    "    block (%2d,%2d): reference %.4f, difference %+.4f (%+.2f%%), se %.2f%%, "
+                    "z %+.2f\n",
+                    bx, by, ref, d.mean, 100 * d.mean / ref, 100 * d.se / ref, z);
+            EXPECT_LT(std::abs(z), max_z) << "block (" << bx << ", " << by << "): reference " << ref
+                                          << ", difference " << d.mean << ", se " << d.se;
+            EXPECT_LT(4 * d.se, resolve * ref)
+                << "block (" << bx << ", " << by << ") too noisy to resolve " << resolve;
+        }
+    EXPECT_GE(blocks, 4) << "too few blocks inside the mask";
+    const Estimate total = MeanOf(all_diff);
+    const double ref = MeanOf(all_path).mean;
+    if (verbose)
+        std::printf(
+            "    all %zu values: difference %+.3f%%, se %.3f%%, %d blocks, worst |z| %.2f\n",
+            total.n, 100 * total.mean / ref, 100 * total.se / ref, blocks, worst);
+    testing::Test::RecordProperty("relative_difference", std::to_string(total.mean / ref));
+    testing::Test::RecordProperty("relative_standard_error", std::to_string(total.se / ref));
+    testing::Test::RecordProperty("worst_block_z", std::to_string(worst));
+    EXPECT_LT(std::abs(total.mean), 3 * total.se) << "whole image";
+    return worst;
+}
+
+}  // namespace tessera::test
