@@ -8,9 +8,12 @@
 // A CONFIG is a list of render-block overrides, e.g.
 //   "integrator=irradiance-cache spp=8 ic.accuracy=0.2 ic.samples=256"
 //   "integrator=photon spp=4 ic=1"   "integrator=path spp=64"
-// Keys: integrator, spp, ic (photon: through the cache), ic.accuracy, ic.samples,
-// ic.passes, ic.gradients, photons, caustic, gather. bench/run_gi.sh renders the
-// references and runs the standard comparisons.
+// Keys: integrator, spp, max_depth, seed, ic (photon: through the cache), ic.accuracy,
+// ic.samples, ic.passes, ic.gradients, photons, caustic, gather, light_paths_per_task,
+// mlt.bootstrap, mlt.chains, mlt.p_large. bench/run_gi.sh and bench/run_bidir.sh render the
+// references and run the standard comparisons. Columns: wall seconds, camera samples
+// (pixels x spp; MLT: mutations) per second, RMSE, relative bias, RMSE^2 x seconds (lower
+// is better: error per second), and irradiance-cache records.
 
 #include <chrono>
 #include <cmath>
@@ -79,6 +82,18 @@ void Apply(const std::string& config, RenderSettings* s) {
             s->photon.caustic_photons = std::stoi(v);
         else if (k == "gather")
             s->photon.gather_rays = std::stoi(v);
+        else if (k == "max_depth")
+            s->max_depth = std::stoi(v);
+        else if (k == "seed")
+            s->seed = std::stoull(v);
+        else if (k == "mlt.bootstrap")
+            s->mlt.bootstrap_samples = std::stoi(v);
+        else if (k == "mlt.chains")
+            s->mlt.chains = std::stoi(v);
+        else if (k == "mlt.p_large")
+            s->mlt.p_large = std::stof(v);
+        else if (k == "light_paths_per_task")
+            s->light_paths_per_task = std::stoi(v);
         else
             throw std::invalid_argument("unknown config key " + k);
     }
@@ -113,8 +128,8 @@ int main(int argc, char** argv) {
     LoadedScene loaded = LoadSceneFile(scene_path, size);
     std::printf("%s %dx%d, reference %s, emitters (luminance > %.2f) left out\n",
                 scene_path.c_str(), ref.width, ref.height, argv[2], emitter);
-    std::printf("%-72s %9s %10s %9s %12s %8s\n", "configuration", "seconds", "RMSE", "bias",
-                "RMSE^2*s", "records");
+    std::printf("%-72s %9s %11s %10s %9s %12s %8s\n", "configuration", "seconds", "samples/s",
+                "RMSE", "bias", "RMSE^2*s", "records");
     for (const std::string& config : configs) {
         RenderSettings s = loaded.settings;
         Apply(config, &s);
@@ -124,8 +139,10 @@ int main(int argc, char** argv) {
         double seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         Error e = Compare(image, ref, emitter);
-        std::printf("%-72s %9.2f %10.5f %+8.2f%% %12.3e %8zu\n", config.c_str(), seconds, e.rmse,
-                    100 * e.bias, e.rmse * e.rmse * seconds, stats.irradiance_records);
+        const double samples = double(ref.width) * ref.height * s.spp;
+        std::printf("%-72s %9.2f %11.0f %10.5f %+8.2f%% %12.3e %8zu\n", config.c_str(), seconds,
+                    samples / seconds, e.rmse, 100 * e.bias, e.rmse * e.rmse * seconds,
+                    stats.irradiance_records);
         std::fflush(stdout);
     }
     return 0;

@@ -31,7 +31,10 @@ namespace {
 
 using test::Diffuse;
 using test::Estimate;
+using test::MakeRoom;
+using test::MakeVeachMis;
 using test::MeanOf;
+using test::Room;
 using test::SetCamera;
 
 bool Verbose() { return std::getenv("TESSERA_BDPT_VERBOSE") != nullptr; }
@@ -50,42 +53,6 @@ IntegratorSettings Integrator(int max_depth) {
     IntegratorSettings s;
     s.max_depth = max_depth;
     return s;
-}
-
-// A closed room (white walls, a red sphere, a green block) with a square lamp under the
-// ceiling; with `specular`, a mirror sphere, a glass sphere and a glossy plastic block too.
-struct Room {
-    std::unique_ptr<Scene> scene = std::make_unique<Scene>();
-    const Material* lamp = nullptr;
-};
-
-Room MakeRoom(bool specular, int size = 32) {
-    Room room;
-    Scene& scene = *room.scene;
-    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), Diffuse(scene, 0.7f));
-    const Material* red =
-        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.7f, 0.1f, 0.1f))));
-    const Material* green =
-        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.1f, 0.6f, 0.1f))));
-    scene.AddMesh(MakeBox(Vec3(-0.7f, -1, 0.1f), Vec3(-0.2f, 0.2f, 0.6f)), green);
-    scene.AddSphere(Vec3(0.45f, -0.65f, -0.1f), 0.35f, red);
-    if (specular) {
-        scene.AddSphere(Vec3(-0.5f, -0.75f, -0.45f), 0.25f,
-                        scene.AddMaterial(MakeMirrorMaterial(MakeConstantTexture(Rgb(0.9f)))));
-        scene.AddSphere(Vec3(0.1f, -0.2f, 0.5f), 0.25f,
-                        scene.AddMaterial(MakeDielectricMaterial(1.5f)));
-        scene.AddMesh(MakeBox(Vec3(0.3f, -1, 0.4f), Vec3(0.8f, -0.6f, 0.9f)),
-                      scene.AddMaterial(MakePlasticMaterial(
-                          MakeConstantTexture(Rgb(0.3f, 0.3f, 0.6f)), 1.5f, 0.1f)));
-    }
-    Emission e{Rgb(6), false};
-    room.lamp = Diffuse(scene, 0);
-    scene.AddMesh(MakeQuad(Vec3(-0.3f, 0.98f, -0.3f), Vec3(0.3f, 0.98f, -0.3f),
-                           Vec3(0.3f, 0.98f, 0.3f), Vec3(-0.3f, 0.98f, 0.3f)),
-                  room.lamp, &e);
-    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, size);
-    scene.Commit();
-    return room;
 }
 
 // The full path that strategy (s, t) of two subpaths makes, light end first; `sampled` is
@@ -211,29 +178,6 @@ TEST(BdptMis, WeightsSumToOneUnderAnEnvironmentLight) {
     EXPECT_GT(checked, 1000);
 }
 
-// The image's mean within 4.5 standard errors of `expected` (7 degrees of freedom: a
-// chance near 0.3% of failing by chance), and the test able to see a 1% error. The light
-// subpaths' splats make neighbouring pixels' errors correlated, so the standard error
-// comes from the spread of 8 independent renders (seeds) rather than from the pixels.
-void ExpectUniformRenders(const Scene& scene, RenderSettings settings, double expected) {
-    std::vector<double> means;
-    for (int r = 0; r < 8; ++r) {
-        const Image image = RenderFrameLocal(scene, settings, 2);
-        double sum = 0;
-        for (int y = 0; y < image.height; ++y)
-            for (int x = 0; x < image.width; ++x)
-                for (int c = 0; c < 3; ++c) sum += image.At(x, y, c);
-        means.push_back(sum / (3.0 * image.width * image.height));
-        settings.seed += 101;
-    }
-    const Estimate e = MeanOf(means);
-    if (Verbose()) std::printf("    mean %.5f, se %.5f (expected %.5f)\n", e.mean, e.se, expected);
-    testing::Test::RecordProperty("mean", std::to_string(e.mean));
-    testing::Test::RecordProperty("standard_error", std::to_string(e.se));
-    EXPECT_NEAR(e.mean, expected, 4.5 * e.se);
-    EXPECT_LT(4 * e.se, 0.01 * expected);
-}
-
 // White furnace: a sphere of albedo 0.8 under a uniform sky of radiance 1 is 0.8 wherever
 // the camera sees it, and 1 elsewhere (a convex object sees only the sky).
 TEST(BdptKnownAnswer, WhiteFurnace) {
@@ -243,7 +187,7 @@ TEST(BdptKnownAnswer, WhiteFurnace) {
     // The sphere fills the whole image.
     SetCamera(scene, Vec3(0, 0, -2.5f), Vec3(0, 0, 0), 20, 16);
     scene.Commit();
-    ExpectUniformRenders(scene, Settings("bdpt", 128, 31), 0.8);
+    test::ExpectUniformRenders(scene, Settings("bdpt", 128, 31), 0.8, 0.01, Verbose());
 }
 
 // Albedo 1/2, point light of intensity pi at the centre of a unit sphere: radiance 1/2
@@ -254,7 +198,7 @@ TEST(BdptKnownAnswer, InsideDiffuseSphereWithPointLight) {
     scene.AddLight(MakePointLight(Vec3(0, 0, 0), Rgb(kPi)));
     SetCamera(scene, Vec3(0.1f, -0.2f, 0.3f), Vec3(0.4f, 0.2f, 1), 90, 16);
     scene.Commit();
-    ExpectUniformRenders(scene, Settings("bdpt", 32, 32), 1.0);
+    test::ExpectUniformRenders(scene, Settings("bdpt", 32, 32), 1.0, 0.01, Verbose());
 }
 
 // Emission 1/2 (both sides) and albedo 1/2: the emitter seen directly plus its
@@ -265,10 +209,10 @@ TEST(BdptKnownAnswer, InsideEmissiveDiffuseSphere) {
     scene.AddSphere(Vec3(0, 0, 0), 1, Diffuse(scene, 0.5f), &e);
     SetCamera(scene, Vec3(0.1f, 0, 0), Vec3(0, 1, 0.2f), 90, 16);
     scene.Commit();
-    ExpectUniformRenders(scene, Settings("bdpt", 32, 33), 1.0);
+    test::ExpectUniformRenders(scene, Settings("bdpt", 32, 33), 1.0, 0.01, Verbose());
     RenderSettings direct = Settings("bdpt", 2, 34);
     direct.max_depth = 0;
-    ExpectUniformRenders(scene, direct, 0.5);
+    test::ExpectUniformRenders(scene, direct, 0.5, 0.01, Verbose());
 }
 
 // The room, with the lamp seen directly and through the mirror and glass: BDPT and the
@@ -281,48 +225,13 @@ TEST(BdptVsPath, RoomWithSpecularObjectsAgreesBlockByBlock) {
     test::ExpectBlocksAgree(bdpt, path, mask, 8, 3.5, 0.1, Verbose());
 }
 
-// Veach's MIS scene in small: four plates from nearly mirror-like to rough, lit by spheres
-// from large and dim to tiny and bright, over a diffuse floor.
-std::unique_ptr<Scene> MakeVeachMis(const Material** black_out) {
-    auto owned = std::make_unique<Scene>();
-    Scene& scene = *owned;
-    const Rgb eta(0.2f, 0.92f, 1.1f), k(3.9f, 2.45f, 2.14f);
-    const float alphas[4] = {0.01f, 0.05f, 0.1f, 0.25f};
-    for (int i = 0; i < 4; ++i) {
-        const float z = -1.5f + i, y = -0.6f + 0.12f * i;
-        // Plates tilted toward the camera and the lights.
-        scene.AddMesh(MakeQuad(Vec3(-1.8f, y - 0.12f, z - 0.4f), Vec3(1.8f, y - 0.12f, z - 0.4f),
-                               Vec3(1.8f, y + 0.12f, z + 0.4f), Vec3(-1.8f, y + 0.12f, z + 0.4f)),
-                      scene.AddMaterial(MakeRoughConductorMaterial(eta, k, alphas[i], alphas[i])));
-    }
-    scene.AddMesh(
-        MakeQuad(Vec3(-6, -1.2f, -6), Vec3(6, -1.2f, -6), Vec3(6, -1.2f, 6), Vec3(-6, -1.2f, 6)),
-        Diffuse(scene, 0.4f));
-    const Material* black = Diffuse(scene, 0);
-    const float radii[3] = {0.4f, 0.15f, 0.04f};
-    for (int i = 0; i < 3; ++i) {
-        Emission e{Rgb(1.5f / (radii[i] * radii[i])), false};
-        scene.AddSphere(Vec3(-1.2f + 1.2f * i, 1.2f, 2.5f), radii[i], black, &e);
-    }
-    SetCamera(scene, Vec3(0, 1.0f, -4.5f), Vec3(0, -0.4f, 0.5f), 45, 32);
-    scene.Commit();
-    *black_out = black;
-    return owned;
-}
-
 // The lights' reflections in the plates are made by every kind of strategy; the lights
 // themselves are left out (their pixels are mostly one huge value).
 TEST(BdptVsPath, VeachMisAgreesBlockByBlock) {
     const Material* black = nullptr;
     std::unique_ptr<Scene> owned = MakeVeachMis(&black);
     const Scene& scene = *owned;
-    std::vector<bool> mask(32 * 32, true);
-    for (int y = 0; y < 32; ++y)
-        for (int x = 0; x < 32; ++x) {
-            SurfaceInteraction si;
-            if (!test::CameraHit(scene, Vec2(x + 0.5f, y + 0.5f), &si) || si.material == black)
-                mask[y * 32 + x] = false;
-        }
+    const std::vector<bool> mask = test::PixelsNotSeeing(scene, black);
     RenderSettings ps = Settings("path", 1024, 43), bs = Settings("bdpt", 256, 44);
     ps.max_depth = bs.max_depth = 3;
     const Image path = RenderFrameLocal(scene, ps, 2);

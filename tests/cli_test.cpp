@@ -360,6 +360,39 @@ void ExpectSameImage(const Image& a, const Image& b) {
     EXPECT_EQ(a.channels.size(), b.channels.size());
 }
 
+// --strategy-images: BDPT's strategies beside the frame, each weighted and unweighted, the
+// paths of each length summed, and the grid; refused before rendering for other
+// integrators.
+TEST_F(CliTest, StrategyImagesAreWrittenBesideTheFrame) {
+    const std::string out = (dir_ / "bdpt.exr").string();
+    ASSERT_EQ(0, Run("render " + kCornell +
+                     " --integrator bdpt --spp 2 --width 16 --height 16 --strategy-images "
+                     "--strategy-length 2 -q -o " +
+                     out))
+        << err_;
+    const fs::path folder = dir_ / "bdpt.strategies";
+    for (const char* name :
+         {"s0-t2.exr", "s0-t3.exr", "s1-t2.exr", "s2-t1.exr", "s2-t1.unweighted.exr", "s3-t1.exr",
+          "length-0.exr", "length-1.exr", "length-2.exr", "rest.exr", "strategies.png",
+          "strategies-unweighted.png"})
+        EXPECT_TRUE(fs::exists(folder / name)) << name;
+    // The lengths' images and the rest sum to the frame.
+    const Image frame = ReadImage(out);
+    Image sum = ReadImage((folder / "rest.exr").string());
+    for (const char* name : {"length-0.exr", "length-1.exr", "length-2.exr"}) {
+        const Image part = ReadImage((folder / name).string());
+        for (size_t i = 0; i < sum.pixels.size(); ++i) sum.pixels[i] += part.pixels[i];
+    }
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            EXPECT_NEAR(sum.At(x, y, 1), frame.At(x, y, 1), 1e-4 * (1 + frame.At(x, y, 1)));
+    const std::string path_out = (dir_ / "path.exr").string();
+    EXPECT_NE(0, Run("render " + kCornell +
+                     " --spp 1 --width 8 --height 8 --strategy-images -q -o " + path_out));
+    EXPECT_NE(err_.find("--strategy-images needs the bdpt integrator"), std::string::npos) << err_;
+    EXPECT_FALSE(fs::exists(path_out));
+}
+
 TEST_F(CliTest, CornellBoxEqualsAnInProcessRender) {
     const std::string out = (dir_ / "cornell.exr").string();
     ASSERT_EQ(0, Run("render " + kCornell +

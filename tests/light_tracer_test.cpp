@@ -223,6 +223,35 @@ TEST(LightTracerKnownAnswer, InsideEmissiveDiffuseSphere) {
     ExpectUniformImage(RenderFrameLocal(scene, direct, 2), 0.5);
 }
 
+// White furnace: a sphere of albedo 0.8 filling the image under a uniform sky of radiance 1.
+// Light paths start on the disk the sky's rays cross, reach the sphere and connect to the
+// lens: the sky's power, the disk's density and the camera's importance all have to agree.
+TEST(LightTracerKnownAnswer, WhiteFurnace) {
+    Scene scene;
+    scene.AddSphere(Vec3(0, 0, 0), 1, Diffuse(scene, 0.8f));
+    scene.AddLight(MakeConstantEnvironmentLight(Rgb(1)));
+    SetCamera(scene, Vec3(0, 0, -2.5f), Vec3(0, 0, 0), 20, 16);
+    scene.Commit();
+    test::ExpectUniformRenders(scene, Settings("light", 4096), 0.8, 0.025, Verbose());
+}
+
+// Veach's MIS scene in small, on the diffuse floor (light tracing cannot see the plates'
+// near-mirror reflections of the lights through a pinhole as a path tracer does, but it
+// sees their reflections onto the floor): light and path tracing agree block by block.
+TEST(LightTracerVsPath, VeachMisFloorAgreesBlockByBlock) {
+    const Material* black = nullptr;
+    std::unique_ptr<Scene> owned = test::MakeVeachMis(&black);
+    const Scene& scene = *owned;
+    SurfaceInteraction floor_hit;
+    ASSERT_TRUE(scene.Intersect(Ray{Vec3(5, 0, 5), Vec3(0, -1, 0), 0}, &floor_hit));
+    const std::vector<bool> mask = PixelsSeeing(scene, floor_hit.material);
+    RenderSettings ps = Settings("path", 1024, 81), ls = Settings("light", 1024, 82);
+    ps.max_depth = ls.max_depth = 3;
+    const Image path = RenderFrameLocal(scene, ps, 2);
+    const Image light = RenderFrameLocal(scene, ls, 2);
+    test::ExpectBlocksAgree(light, path, mask, 4, 3.5, 0.3, Verbose());
+}
+
 // Light paths are keyed by their sample streams: the thread count changes no bit, the
 // seed changes the image.
 TEST(LightTracerDeterminism, ThreadCountLeavesTheImageBitIdentical) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "film/image.h"
+#include "plan/local_runner.h"
 #include "scene/scene.h"
 
 namespace tessera::test {
@@ -61,6 +62,27 @@ inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* materi
     return mask;
 }
 
+// Pixels none of whose area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees
+// a surface of `material`: to leave emitters out of a comparison, partly covered pixels
+// too (a sliver of a bright light dominates a pixel's value and its variance).
+inline std::vector<bool> PixelsNotSeeing(const Scene& scene, const Material* material) {
+    const Vec2i res = scene.GetCamera().Resolution();
+    std::vector<bool> mask(size_t(res.x) * res.y, true);
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x)
+            for (int j = 0; j < 8 && mask[y * res.x + x]; ++j)
+                for (int i = 0; i < 8; ++i) {
+                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
+                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
+                    SurfaceInteraction si;
+                    if (CameraHit(scene, p, &si) && si.material == material) {
+                        mask[y * res.x + x] = false;
+                        break;
+                    }
+                }
+    return mask;
+}
+
 // One renderer's image (`light`) against another's (`path`, the reference), block by block (block x
 // block pixels, only the pixels in `mask`): the difference of the two images, pixel by pixel, has
 // mean zero, and its pixels are independent, so each block's mean difference is compared with its
@@ -91,9 +113,11 @@ inline double ExpectBlocksAgree(const Image& light, const Image& path,
             all_diff.insert(all_diff.end(), diff.begin(), diff.end());
             all_path.insert(all_path.end(), reference.begin(), reference.end());
             if (diff.size() < size_t(3 * block * block / 2)) continue;
-            ++blocks;
             const Estimate d = MeanOf(diff);
             const double ref = MeanOf(reference).mean;
+            // Black in both (the sky): nothing to compare.
+            if (ref == 0 && d.mean == 0 && d.se == 0) continue;
+            ++blocks;
             const double z = d.se > 0 ? d.mean / d.se : 0;
             worst = std::max(worst, std::abs(z));
             if (verbose)
@@ -118,6 +142,33 @@ inline double ExpectBlocksAgree(const Image& light, const Image& path,
     testing::Test::RecordProperty("worst_block_z", std::to_string(worst));
     EXPECT_LT(std::abs(total.mean), 3 * total.se) << "whole image";
     return worst;
+}
+
+// The mean of R, G and B over renders of an image that should be uniform, within 4.5
+// standard errors of `expected` (7 degrees of freedom: a chance near 0.3% of failing by
+// chance), and the test able to see a relative error of `resolve`. Renderers whose paths
+// splat (light tracing, BDPT's t = 1 strategies, MLT's chains) make neighbouring pixels'
+// errors correlated, so the standard error comes from the spread of 8 independent renders
+// (seeds) rather than from the pixels. Returns the mean.
+inline double ExpectUniformRenders(const Scene& scene, RenderSettings settings, double expected,
+                                   double resolve = 0.01, bool verbose = false) {
+    std::vector<double> means;
+    for (int r = 0; r < 8; ++r) {
+        const Image image = RenderFrameLocal(scene, settings, 2);
+        double sum = 0;
+        for (int y = 0; y < image.height; ++y)
+            for (int x = 0; x < image.width; ++x)
+                for (int c = 0; c < 3; ++c) sum += image.At(x, y, c);
+        means.push_back(sum / (3.0 * image.width * image.height));
+        settings.seed += 101;
+    }
+    const Estimate e = MeanOf(means);
+    if (verbose) std::printf("    mean %.5f, se %.5f (expected %.5f)\n", e.mean, e.se, expected);
+    testing::Test::RecordProperty("mean", std::to_string(e.mean));
+    testing::Test::RecordProperty("standard_error", std::to_string(e.se));
+    EXPECT_NEAR(e.mean, expected, 4.5 * e.se + 1e-6);
+    EXPECT_LT(4 * e.se, resolve * expected) << "too noisy to resolve " << resolve;
+    return e.mean;
 }
 
 }  // namespace tessera::test
