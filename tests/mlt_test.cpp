@@ -327,7 +327,9 @@ TEST(MltVsPath, VeachMisPathValuesAgreeDepthByDepth) {
         EXPECT_LE(std::abs(m.mean - r.mean), 4.5 * se + 1e-7) << "depth " << d;
         // Depths 0 and 1 carry the light: resolve a 10% error at depth 1, 30% at depth 0
         // (the tiny light seen directly).
-        if (d <= 1) EXPECT_LT(4 * se, (d == 0 ? 0.3 : 0.1) * r.mean) << "depth " << d;
+        if (d <= 1) {
+            EXPECT_LT(4 * se, (d == 0 ? 0.3 : 0.1) * r.mean) << "depth " << d;
+        }
     }
 }
 

@@ -144,6 +144,63 @@ inline double ExpectBlocksAgree(const Image& light, const Image& path,
     return worst;
 }
 
+// Renders made with several seeds (`renders`) against a reference, block by block (only the
+// pixels in `mask`): each block's mean difference per render, then its mean and standard
+// error over the renders, so that errors correlated between pixels (splats of light
+// subpaths) count. Each block within max_t standard errors (5.4 with 8 renders: a chance
+// near 0.1% per block under Student's t with 7 degrees of freedom), the whole image within
+// max_t too, and each block's standard error at most resolve / 4 of its mean. Returns the
+// largest |t|.
+inline double ExpectBlocksAgreeOverSeeds(const std::vector<Image>& renders, const Image& reference,
+                                         const std::vector<bool>& mask, int block, double max_t,
+                                         double resolve, bool verbose = false) {
+    const int w = reference.width, h = reference.height;
+    double worst = 0;
+    int blocks = 0;
+    auto check = [&](int x0, int y0, int x1, int y1, const char* what) {
+        std::vector<double> per_render;
+        double ref = 0;
+        size_t n = 0;
+        for (const Image& image : renders) {
+            double diff = 0;
+            ref = 0;
+            n = 0;
+            for (int y = y0; y < y1; ++y)
+                for (int x = x0; x < x1; ++x) {
+                    if (!mask[y * w + x]) continue;
+                    for (int c = 0; c < 3; ++c) {
+                        diff += image.At(x, y, c) - reference.At(x, y, c);
+                        ref += reference.At(x, y, c);
+                        ++n;
+                    }
+                }
+            per_render.push_back(n ? diff / double(n) : 0);
+        }
+        if (n < size_t(3 * (x1 - x0) * (y1 - y0) / 2) || !(ref > 0)) return;
+        ref /= double(n);
+        const Estimate d = MeanOf(per_render);
+        const double t = d.se > 0 ? d.mean / d.se : 0;
+        worst = std::max(worst, std::abs(t));
+        if (verbose)
+            std::printf(
+                "    %s (%2d,%2d): reference %.4f, difference %+.4f (%+.2f%%), se %.2f%%, "
+                "t %+.2f\n",
+                what, x0, y0, ref, d.mean, 100 * d.mean / ref, 100 * d.se / ref, t);
+        EXPECT_LT(std::abs(t), max_t) << what << " (" << x0 << ", " << y0 << "): reference " << ref
+                                      << ", difference " << d.mean << ", se " << d.se;
+        EXPECT_LT(4 * d.se, resolve * ref)
+            << what << " (" << x0 << ", " << y0 << ") too noisy to resolve " << resolve;
+        ++blocks;
+    };
+    for (int by = 0; by + block <= h; by += block)
+        for (int bx = 0; bx + block <= w; bx += block)
+            check(bx, by, bx + block, by + block, "block");
+    EXPECT_GE(blocks, 4) << "too few blocks inside the mask";
+    check(0, 0, w, h, "image");
+    testing::Test::RecordProperty("worst_block_t", std::to_string(worst));
+    return worst;
+}
+
 // The mean of R, G and B over renders of an image that should be uniform, within 4.5
 // standard errors of `expected` (7 degrees of freedom: a chance near 0.3% of failing by
 // chance), and the test able to see a relative error of `resolve`. Renderers whose paths

@@ -1,6 +1,9 @@
 #include "integrator/bdpt.h"
 
+#include <bit>
 #include <cmath>
+
+#include "core/rng.h"
 
 namespace tessera {
 namespace {
@@ -17,24 +20,28 @@ TransportMode Reverse(TransportMode mode) {
     return mode == TransportMode::kRadiance ? TransportMode::kImportance : TransportMode::kRadiance;
 }
 
-// Unit direction from one vertex toward another; toward a light at infinity, the opposite
-// of the direction its light travels.
-Vec3 DirTo(const BdptVertex& from, const BdptVertex& to) {
-    if (to.infinite) return -to.w;
-    if (from.infinite) return from.w;
-    return Normalize(to.p() - from.p());
-}
+}  // namespace
 
-// A solid-angle density at `from` toward `to`, in area measure at `to` (unchanged toward a
-// light at infinity, whose "position" is its direction).
-float ConvertDensity(float pdf, const BdptVertex& from, const BdptVertex& to) {
-    if (to.infinite) return pdf;
+BdptEdge EdgeBetween(const BdptVertex& from, const BdptVertex& to) {
+    if (to.infinite) return BdptEdge{-to.w, 0};
+    if (from.infinite) return BdptEdge{from.w, 0};
     const Vec3 d = to.p() - from.p();
     const float dist2 = LengthSquared(d);
-    if (!(dist2 > 0)) return 0;
-    const float inv_dist2 = 1 / dist2;
-    if (to.si.ng != Vec3()) pdf *= AbsDot(to.si.ng, d * std::sqrt(inv_dist2));
-    return pdf * inv_dist2;
+    if (!(dist2 > 0)) return BdptEdge{};
+    return BdptEdge{d / std::sqrt(dist2), dist2};
+}
+
+namespace {
+
+BdptEdge Reversed(const BdptEdge& e) { return BdptEdge{-e.d, e.dist2}; }
+
+// A solid-angle density at the start of edge `e` toward `to`, in area measure at `to`
+// (unchanged toward a light at infinity, whose "position" is its direction).
+float ConvertDensity(float pdf, const BdptEdge& e, const BdptVertex& to) {
+    if (to.infinite) return pdf;
+    if (!(e.dist2 > 0)) return 0;
+    if (to.si.ng != Vec3()) pdf *= AbsDot(to.si.ng, e.d);
+    return pdf / e.dist2;
 }
 
 // The adjoint shading-normal correction (Veach's thesis, eq. 5.17) for a light path
@@ -77,7 +84,7 @@ bool BdptVertex::IsConnectible() const {
 BdptIntegrator::BdptIntegrator(const Scene& scene, const IntegratorSettings& settings)
     : scene_(scene), settings_(settings) {}
 
-float BdptIntegrator::PdfLight(const BdptVertex& v, const BdptVertex& to) const {
+float BdptIntegrator::PdfLight(const BdptVertex& v, const BdptEdge& e, const BdptVertex& to) const {
     if (v.infinite) {
         // Rays from a light at infinity cross a disk over the scene: the disk's area
         // density, projected onto the receiving surface.
@@ -92,10 +99,9 @@ float BdptIntegrator::PdfLight(const BdptVertex& v, const BdptVertex& to) const 
         return pdf_pos;
     }
     if (!v.light) return 0;
-    const Vec3 d = DirTo(v, to);
     float pdf_pos = 0, pdf_dir = 0;
-    v.light->PdfLe(Ray{v.p(), d, v.si.time}, v.si.ng, &pdf_pos, &pdf_dir);
-    return ConvertDensity(pdf_dir, v, to);
+    v.light->PdfLe(Ray{v.p(), e.d, v.si.time}, v.si.ng, &pdf_pos, &pdf_dir);
+    return ConvertDensity(pdf_dir, e, to);
 }
 
 float BdptIntegrator::PdfLightOrigin(const BdptVertex& v, const BdptVertex& to) const {
@@ -112,40 +118,41 @@ float BdptIntegrator::PdfLightOrigin(const BdptVertex& v, const BdptVertex& to) 
     }
     if (!v.light) return 0;
     float pdf_pos = 0, pdf_dir = 0;
-    v.light->PdfLe(Ray{v.p(), DirTo(v, to), v.si.time}, v.si.ng, &pdf_pos, &pdf_dir);
+    v.light->PdfLe(Ray{v.p(), EdgeBetween(v, to).d, v.si.time}, v.si.ng, &pdf_pos, &pdf_dir);
     return sampler.Pmf(v.light) * pdf_pos;
 }
 
-float BdptIntegrator::Pdf(const BdptVertex* prev, const BdptVertex& cur, const BdptVertex& next,
-                          TransportMode mode) const {
-    if (cur.type == BdptVertexType::kLight) return PdfLight(cur, next);
-    const Vec3 wn = DirTo(cur, next);
+float BdptIntegrator::Pdf(const BdptVertex& cur, const BdptEdge* to_prev, const BdptEdge& to_next,
+                          const BdptVertex& next, TransportMode mode) const {
+    if (cur.type == BdptVertexType::kLight) return PdfLight(cur, to_next, next);
     if (cur.type == BdptVertexType::kCamera) {
         float pdf_pos = 0, pdf_dir = 0;
-        scene_.GetCamera().PdfWe(Ray{cur.p(), wn, cur.si.time}, &pdf_pos, &pdf_dir);
-        return ConvertDensity(pdf_dir, cur, next);
+        scene_.GetCamera().PdfWe(Ray{cur.p(), to_next.d, cur.si.time}, &pdf_pos, &pdf_dir);
+        return ConvertDensity(pdf_dir, to_next, next);
     }
     if (!cur.bsdf) return 0;
-    const Vec3 wp = prev ? DirTo(cur, *prev) : cur.wo;
-    const float pdf = cur.bsdf->Pdf(cur.si.shading.ToLocal(wp), cur.si.shading.ToLocal(wn), mode);
-    return ConvertDensity(pdf, cur, next);
+    const Vec3 wp = to_prev ? to_prev->d : cur.wo;
+    const float pdf =
+        cur.bsdf->Pdf(cur.si.shading.ToLocal(wp), cur.si.shading.ToLocal(to_next.d), mode);
+    return ConvertDensity(pdf, to_next, next);
 }
 
-Rgb BdptIntegrator::Emitted(const BdptVertex& v, const BdptVertex& to) const {
+Rgb BdptIntegrator::Emitted(const BdptVertex& v, const BdptEdge& to) const {
     if (v.infinite && !v.light) {
         Rgb L;
         for (const Light* light : scene_.InfiniteLights()) L += light->Le(-v.w);
         return L;
     }
     if (v.type != BdptVertexType::kSurface || !v.light) return {};
-    return v.light->L(v.p(), v.si.ng, v.si.uv, DirTo(v, to));
+    return v.light->L(v.p(), v.si.ng, v.si.uv, to.d);
 }
 
-Rgb BdptIntegrator::F(const BdptVertex& v, const BdptVertex& next, TransportMode mode) const {
-    const Vec3 wi = DirTo(v, next);
+Rgb BdptIntegrator::F(const BdptVertex& v, const BdptEdge& to_next, TransportMode mode) const {
+    const Vec3& wi = to_next.d;
     const Rgb f = v.bsdf->Eval(v.si.shading.ToLocal(v.wo), v.si.shading.ToLocal(wi), mode);
     if (f.IsBlack()) return {};
-    // Times the cosine at v of the edge toward `next`: the adjoint form for light paths.
+    // Times the cosine at v of the edge toward the next vertex: the adjoint form for light
+    // paths.
     const float cosine = mode == TransportMode::kImportance ? AdjointCosine(v.si, v.wo, wi)
                                                             : AbsDot(wi, v.si.shading.n);
     return f * cosine;
@@ -190,8 +197,12 @@ int BdptIntegrator::RandomWalk(Ray ray, Rgb beta, float /*pdf_dir*/, int max_ver
         // Densities from positions: how the previous vertex sampled this one, and how this
         // one would sample the vertex before it (none after a specular scattering).
         const BdptVertex& prev = path[n - 2];
-        v.pdf_fwd = prev.delta ? 0 : Pdf(n >= 3 ? &path[n - 3] : nullptr, prev, v, mode);
-        if (n >= 3) path[n - 3].pdf_rev = prev.delta ? 0 : Pdf(&v, prev, path[n - 3], reverse);
+        v.pred = EdgeBetween(v, prev);
+        const BdptEdge prev_to_v = Reversed(v.pred);
+        v.pdf_fwd = prev.delta ? 0 : Pdf(prev, n >= 3 ? &prev.pred : nullptr, prev_to_v, v, mode);
+        if (n >= 3)
+            path[n - 3].pdf_rev =
+                prev.delta ? 0 : Pdf(prev, &prev_to_v, prev.pred, path[n - 3], reverse);
         if (v.infinite) break;
 
         // Every vertex draws the same dimensions, whether it scatters or not.
@@ -282,8 +293,8 @@ int BdptIntegrator::LightSubpath(Sampler& sampler, float time, ScratchBuffer& ar
     return n;
 }
 
-float BdptIntegrator::MisWeight(const BdptVertex* light, int s, const BdptVertex* camera,
-                                int t) const {
+float BdptIntegrator::MisWeight(const BdptVertex* light, int s, const BdptVertex* camera, int t,
+                                const BdptEdge* joining) const {
     const int n = s + t;
     if (n == 2) return 1;
     thread_local std::vector<float> pf, pc;
@@ -303,13 +314,16 @@ float BdptIntegrator::MisWeight(const BdptVertex* light, int s, const BdptVertex
     const BdptVertex& pt = vertex(s);
     if (s > 0) {
         const BdptVertex& qs = vertex(s - 1);
-        pf[s] = Pdf(s > 1 ? &vertex(s - 2) : nullptr, qs, pt, TransportMode::kImportance);
-        if (s + 1 < n) pf[s + 1] = Pdf(&qs, pt, vertex(s + 1), TransportMode::kImportance);
-        pc[s - 1] = Pdf(t > 1 ? &vertex(s + 1) : nullptr, pt, qs, TransportMode::kRadiance);
-        if (s > 1) pc[s - 2] = Pdf(&pt, qs, vertex(s - 2), TransportMode::kRadiance);
+        const BdptEdge qs_to_pt = joining ? *joining : EdgeBetween(qs, pt);
+        const BdptEdge pt_to_qs = Reversed(qs_to_pt);
+        pf[s] = Pdf(qs, s > 1 ? &qs.pred : nullptr, qs_to_pt, pt, TransportMode::kImportance);
+        if (s + 1 < n)
+            pf[s + 1] = Pdf(pt, &pt_to_qs, pt.pred, vertex(s + 1), TransportMode::kImportance);
+        pc[s - 1] = Pdf(pt, t > 1 ? &pt.pred : nullptr, pt_to_qs, qs, TransportMode::kRadiance);
+        if (s > 1) pc[s - 2] = Pdf(qs, &qs_to_pt, qs.pred, vertex(s - 2), TransportMode::kRadiance);
     } else {
         pf[0] = PdfLightOrigin(pt, vertex(1));
-        pf[1] = PdfLight(pt, vertex(1));
+        pf[1] = PdfLight(pt, pt.pred, vertex(1));
     }
     const bool delta_light = s > 0 && light[0].light && light[0].light->IsDelta();
 
@@ -336,10 +350,11 @@ Rgb BdptIntegrator::Connect(const BdptVertex* light, int s, const BdptVertex* ca
     if (t < 1 || s + t < 2 || (s == 1 && t == 1)) return {};
     BdptVertex sampled;
     Rgb L;
+    BdptEdge joining;  // from light vertex s - 1 to camera vertex t - 1 (s, t >= 1)
     if (s == 0) {
         const BdptVertex& pt = camera[t - 1];
         if (!pt.IsLight()) return {};
-        L = pt.beta * Emitted(pt, camera[t - 2]);
+        L = pt.beta * Emitted(pt, pt.pred);
     } else if (t == 1) {
         const BdptVertex& qs = light[s - 1];
         if (qs.type != BdptVertexType::kSurface || !qs.IsConnectible()) return {};
@@ -350,10 +365,11 @@ Rgb BdptIntegrator::Connect(const BdptVertex* light, int s, const BdptVertex* ca
         sampled.si.p = cs->p_lens;
         sampled.si.time = time;
         sampled.beta = Rgb(cs->We / cs->pdf);
-        L = qs.beta * F(qs, sampled, TransportMode::kImportance) * sampled.beta;
+        L = qs.beta * F(qs, BdptEdge{cs->wi, 0}, TransportMode::kImportance) * sampled.beta;
         if (L.IsBlack() || !Unoccluded(qs, sampled, time)) return {};
         *p_raster = cs->p_raster;
         camera = &sampled;
+        joining = EdgeBetween(qs, sampled);
     } else if (s == 1) {
         const BdptVertex& pt = camera[t - 1];
         if (pt.type != BdptVertexType::kSurface || !pt.IsConnectible()) return {};
@@ -373,27 +389,28 @@ Rgb BdptIntegrator::Connect(const BdptVertex* light, int s, const BdptVertex* ca
         sampled.si.time = time;
         sampled.beta = ls->L / (ls->pdf * pmf);
         sampled.pdf_fwd = PdfLightOrigin(sampled, pt);
-        L = pt.beta * F(pt, sampled, TransportMode::kRadiance) * sampled.beta;
+        L = pt.beta * F(pt, BdptEdge{ls->wi, 0}, TransportMode::kRadiance) * sampled.beta;
         if (L.IsBlack() ||
             scene_.Occluded(OffsetRayOrigin(pt.p(), pt.si.ng, ls->wi), ls->p_light, chosen, time))
             return {};
         light = &sampled;
+        joining = EdgeBetween(sampled, pt);
     } else {
         const BdptVertex& qs = light[s - 1];
         const BdptVertex& pt = camera[t - 1];
         if (qs.type != BdptVertexType::kSurface || pt.type != BdptVertexType::kSurface ||
             !qs.IsConnectible() || !pt.IsConnectible())
             return {};
-        L = qs.beta * F(qs, pt, TransportMode::kImportance) * F(pt, qs, TransportMode::kRadiance) *
-            pt.beta;
-        if (L.IsBlack()) return {};
-        const float dist2 = DistanceSquared(qs.p(), pt.p());
-        if (!(dist2 > 0)) return {};
-        L /= dist2;
+        const BdptEdge qs_to_pt = EdgeBetween(qs, pt);
+        if (!(qs_to_pt.dist2 > 0)) return {};
+        L = qs.beta * F(qs, qs_to_pt, TransportMode::kImportance) *
+            F(pt, Reversed(qs_to_pt), TransportMode::kRadiance) * pt.beta;
+        L /= qs_to_pt.dist2;
         if (L.IsBlack() || !Unoccluded(qs, pt, time)) return {};
+        joining = qs_to_pt;
     }
     if (L.IsBlack() || !IsFinite(L)) return {};
-    *weight = MisWeight(light, s, camera, t);
+    *weight = MisWeight(light, s, camera, t, s > 0 ? &joining : nullptr);
     if (sampled_out) *sampled_out = sampled;
     return L;
 }
@@ -413,29 +430,39 @@ std::vector<float> BdptIntegrator::StrategyWeights(const BdptVertex* path, int n
         v[0].type = BdptVertexType::kLight;
         v[0].bsdf = nullptr;
     }
+    std::vector<BdptEdge> back(n), ahead(n);  // toward x_{i-1}, toward x_{i+1}
     for (int i = 0; i < n; ++i) {
-        const BdptVertex* prev = i >= 2 ? &v[i - 2] : nullptr;
-        if (i == 0) {
-            v[0].pdf_fwd = PdfLightOrigin(v[0], v[1]);
-        } else {
-            v[i].pdf_fwd =
-                v[i - 1].delta ? 0 : Pdf(prev, v[i - 1], v[i], TransportMode::kImportance);
-        }
-        const BdptVertex* next = i + 2 < n ? &v[i + 2] : nullptr;
-        if (i + 1 < n)
-            v[i].pdf_rev = v[i + 1].delta ? 0 : Pdf(next, v[i + 1], v[i], TransportMode::kRadiance);
+        if (i > 0) back[i] = EdgeBetween(v[i], v[i - 1]);
+        if (i + 1 < n) ahead[i] = EdgeBetween(v[i], v[i + 1]);
     }
-    if (v[0].light && v[0].light->IsDelta())
-        v[0].pdf_fwd = scene_.GetLightSampler().Pmf(v[0].light);
+    std::vector<float> pf(n), pc(n);
+    for (int i = 0; i < n; ++i) {
+        pf[i] = i == 0           ? PdfLightOrigin(v[0], v[1])
+                : v[i - 1].delta ? 0
+                                 : Pdf(v[i - 1], i >= 2 ? &back[i - 1] : nullptr, ahead[i - 1],
+                                       v[i], TransportMode::kImportance);
+        pc[i] = i + 1 >= n || v[i + 1].delta ? 0
+                                             : Pdf(v[i + 1], i + 2 < n ? &ahead[i + 1] : nullptr,
+                                                   back[i + 1], v[i], TransportMode::kRadiance);
+    }
+    if (v[0].light && v[0].light->IsDelta()) pf[0] = scene_.GetLightSampler().Pmf(v[0].light);
     const bool delta_light = v[0].light && v[0].light->IsDelta();
     for (int s = 0; s < n; ++s) {
         const bool delta_before = s > 0 ? v[s - 1].delta : delta_light;
         if (v[s].delta || delta_before) continue;
-        // The subpaths as that strategy's walks store them: camera densities reversed.
+        // The subpaths as that strategy's walks store them: each vertex's predecessor
+        // edge and densities on its own side.
         std::vector<BdptVertex> light(v.begin(), v.begin() + s), camera;
+        for (int i = 0; i < s; ++i) {
+            light[i].pred = back[i];
+            light[i].pdf_fwd = pf[i];
+            light[i].pdf_rev = pc[i];
+        }
         for (int i = n - 1; i >= s; --i) {
             BdptVertex c = v[i];
-            std::swap(c.pdf_fwd, c.pdf_rev);
+            c.pred = ahead[i];
+            c.pdf_fwd = pc[i];
+            c.pdf_rev = pf[i];
             camera.push_back(c);
         }
         weights[s] = MisWeight(light.data(), s, camera.data(), n - s);

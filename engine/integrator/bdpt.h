@@ -43,6 +43,13 @@ namespace tessera {
 
 enum class BdptVertexType : uint8_t { kCamera, kLight, kSurface };
 
+// The way from one vertex to another, from their positions: the unit direction and the
+// squared distance (0 toward or from a light at infinity, where only the direction counts).
+struct BdptEdge {
+    Vec3 d;
+    float dist2 = 0;
+};
+
 struct BdptVertex {
     BdptVertexType type = BdptVertexType::kSurface;
     bool delta = false;     // scattered by a specular lobe: no strategy joins the path here
@@ -53,6 +60,8 @@ struct BdptVertex {
     SurfaceInteraction si;
     Vec3 w;   // lights at infinity: the direction light travels into the scene
     Vec3 wo;  // surface vertices: toward the previous vertex, as the ray arrived
+    // Toward the previous vertex of its subpath, from positions (its densities' edge).
+    BdptEdge pred;
     const Bsdf* bsdf = nullptr;
     // Light vertices: their light (null for the environment an escaping camera ray sees:
     // every infinite light). Surface vertices: si.area_light.
@@ -75,6 +84,9 @@ struct BdptVertex {
 // weight. Raster position for t = 1 (splats), else the sample's pixel.
 using BdptStrategySink =
     std::function<void(int s, int t, const Rgb& unweighted, float weight, Vec2 p_raster)>;
+
+// The edge from one vertex toward another, from their positions.
+BdptEdge EdgeBetween(const BdptVertex& from, const BdptVertex& to);
 
 class BdptIntegrator final : public Integrator {
   public:
@@ -126,18 +138,21 @@ class BdptIntegrator final : public Integrator {
     int RandomWalk(Ray ray, Rgb beta, float pdf_dir, int max_vertices, TransportMode mode,
                    Sampler& sampler, ScratchBuffer& arena, BdptVertex* path) const;
     // The area density (solid angle toward a light at infinity) with which `cur`, reached
-    // from `prev` (null: cur is a subpath's first vertex, or use cur.wo), samples `next`.
-    float Pdf(const BdptVertex* prev, const BdptVertex& cur, const BdptVertex& next,
-              TransportMode mode) const;
-    float PdfLight(const BdptVertex& light, const BdptVertex& to) const;
+    // along `to_prev` (null: cur is a subpath's first vertex, or use cur.wo), samples `next`
+    // along `to_next`.
+    float Pdf(const BdptVertex& cur, const BdptEdge* to_prev, const BdptEdge& to_next,
+              const BdptVertex& next, TransportMode mode) const;
+    float PdfLight(const BdptVertex& light, const BdptEdge& to_next, const BdptVertex& to) const;
     float PdfLightOrigin(const BdptVertex& light, const BdptVertex& to) const;
-    // Radiance a light vertex (or emitting surface vertex) sends toward `to`.
-    Rgb Emitted(const BdptVertex& v, const BdptVertex& to) const;
+    // Radiance a light vertex (or emitting surface vertex) sends along `to`.
+    Rgb Emitted(const BdptVertex& v, const BdptEdge& to) const;
     // f (with the adjoint shading-normal correction for importance) of a surface vertex
-    // scattering toward `next`.
-    Rgb F(const BdptVertex& v, const BdptVertex& next, TransportMode mode) const;
+    // scattering along `to_next`, times the cosine there.
+    Rgb F(const BdptVertex& v, const BdptEdge& to_next, TransportMode mode) const;
     // The MIS weight of strategy (s, t) over the full path (densities already set).
-    float MisWeight(const BdptVertex* light, int s, const BdptVertex* camera, int t) const;
+    // `joining`: the edge from light vertex s - 1 to camera vertex t - 1, if known.
+    float MisWeight(const BdptVertex* light, int s, const BdptVertex* camera, int t,
+                    const BdptEdge* joining = nullptr) const;
     // Whether the segment between two vertices is clear.
     bool Unoccluded(const BdptVertex& a, const BdptVertex& b, float time) const;
 
