@@ -4,7 +4,9 @@
 # through a gap a few centimetres wide), each against a long reference rendered once into
 # $REF_DIR. The RMSE^2 x seconds column is the figure to compare (lower is better); the
 # RMSE at equal time T is sqrt(RMSE^2 x seconds / T). Emitters seen directly are left out
-# of the error (light tracing cannot see them through a pinhole). Then the speed of BDPT
+# of the error (light tracing cannot see them through a pinhole). MLT's bootstrap draws
+# fewer states where paths may be long (it evaluates every depth of every state). Then the
+# speed of BDPT
 # alone at the settings: the Cornell box at 512 x 512, 64 spp, max depth 64.
 #
 #   bench/run_bidir.sh [build-dir]   REF_DIR (./bench-references), THREADS (all), SCALE
@@ -28,11 +30,11 @@ reference() {  # scene output width height max-depth integrator spp
     --integrator "$6" --spp "$7" --seed 7777 --threads "$threads" -q
 }
 
-compare() {  # scene reference emitter max-depth; then one spp per integrator
+compare() {  # scene reference emitter max-depth; one spp per integrator; MLT bootstrap
   local d="max_depth=$4"
   "$build/bench/bench_gi" "$1" "$2" --threads "$threads" --emitter "$3" \
     "integrator=path spp=$5 $d" "integrator=light spp=$6 $d" \
-    "integrator=bdpt spp=$7 $d" "integrator=mlt spp=$8 $d mlt.bootstrap=100000 mlt.chains=1024"
+    "integrator=bdpt spp=$7 $d" "integrator=mlt spp=$8 $d mlt.bootstrap=$9 mlt.chains=1024"
 }
 
 for s in ${SCENES:-cornell veach glass door}; do
@@ -42,26 +44,26 @@ for s in ${SCENES:-cornell veach glass door}; do
       echo "== Cornell box ${w}x${h}, max depth 64"
       ref="$ref_dir/bidir-cornell-${w}-d64-path-$ref_spp.exr"
       reference "$root/scenes/cornell-box/scene.json" "$ref" $w $h 64 path "$ref_spp"
-      compare "$root/scenes/cornell-box/scene.json" "$ref" 1.5 64 64 64 16 64 ;;
+      compare "$root/scenes/cornell-box/scene.json" "$ref" 1.5 64 64 64 16 64 10000 ;;
     veach)
       w=$((768 / scale)); h=$((432 / scale))
       echo "== Veach MIS ${w}x${h}, max depth 3"
       ref="$ref_dir/bidir-veach-${w}-d3-path-$ref_spp.exr"
       reference "$root/scenes/veach-mis/scene.json" "$ref" $w $h 3 path "$ref_spp"
-      compare "$root/scenes/veach-mis/scene.json" "$ref" 5 3 64 64 32 64 ;;
+      compare "$root/scenes/veach-mis/scene.json" "$ref" 5 3 64 64 32 64 100000 ;;
     glass)
       w=$((512 / scale)); h=$((384 / scale))
       echo "== glass caustic ${w}x${h}, max depth 64"
       ref="$ref_dir/bidir-glass-${w}-d64-path-$ref_spp.exr"
       reference "$root/scenes/glass-caustic/scene.json" "$ref" $w $h 64 path "$ref_spp"
-      compare "$root/scenes/glass-caustic/scene.json" "$ref" 50 64 64 64 16 64 ;;
+      compare "$root/scenes/glass-caustic/scene.json" "$ref" 50 64 64 64 16 64 10000 ;;
     door)
       w=$((384 / scale)); h=$((256 / scale))
       echo "== door gap ${w}x${h}, max depth 12"
       # Path tracing converges too slowly here for a reference: BDPT's, at many samples.
       ref="$ref_dir/bidir-door-${w}-d12-bdpt-$((ref_spp / 4)).exr"
       reference "$root/scenes/door-gap/scene.json" "$ref" $w $h 12 bdpt $((ref_spp / 4))
-      compare "$root/scenes/door-gap/scene.json" "$ref" 50 12 64 64 8 64 ;;
+      compare "$root/scenes/door-gap/scene.json" "$ref" 50 12 64 64 8 64 50000 ;;
   esac
 done
 

@@ -195,6 +195,19 @@ TEST(MltKnownAnswer, WhiteFurnace) {
     test::ExpectUniformRenders(scene, s, 0.8, 0.015, Verbose());
 }
 
+// Albedo 1/2, a point light of intensity pi at the centre of a unit sphere: radiance 1/2
+// after one bounce, halved by each further one, 1 - 2^-max_depth in all. No strategy hits
+// a point light: the chains must find every path through its delta position.
+TEST(MltKnownAnswer, InsideDiffuseSphereWithPointLight) {
+    Scene scene;
+    scene.AddSphere(Vec3(0, 0, 0), 1, Diffuse(scene, 0.5f));
+    scene.AddLight(MakePointLight(Vec3(0, 0, 0), Rgb(kPi)));
+    SetCamera(scene, Vec3(0.1f, -0.2f, 0.3f), Vec3(0.4f, 0.2f, 1), 90, 16);
+    scene.Commit();
+    RenderSettings s = MltSettings(16, 63);
+    test::ExpectUniformRenders(scene, s, 1 - std::ldexp(1.0, -s.max_depth), 0.015, Verbose());
+}
+
 // Inside an emissive sphere (emission 1/2, albedo 1/2): radiance 1 everywhere up to the
 // paths longer than max_depth, 1 - 2^-(max_depth + 1); with each quarter of the image alike
 // (the chains wander over the whole image, not only where they started): within 10%, where
