@@ -176,7 +176,9 @@ inline double ExpectBlocksAgreeOverSeeds(const std::vector<Image>& renders, cons
                 }
             per_render.push_back(n ? diff / double(n) : 0);
         }
-        if (n < size_t(3 * (x1 - x0) * (y1 - y0) / 2) || !(ref > 0)) return;
+        // A block mostly outside the mask says little (its pixels still count in the image).
+        const bool whole = x1 - x0 == w && y1 - y0 == h;
+        if ((!whole && n < size_t(3 * (x1 - x0) * (y1 - y0) / 2)) || n == 0 || !(ref > 0)) return;
         ref /= double(n);
         const Estimate d = MeanOf(per_render);
         const double t = d.se > 0 ? d.mean / d.se : 0;
