@@ -39,11 +39,7 @@ using test::SetCamera;
 
 bool Verbose() { return std::getenv("TESSERA_BDPT_VERBOSE") != nullptr; }
 
-// Seeds vary between runs when TESSERA_TEST_SEED is set (to look for rare failures).
-uint64_t TestSeed(uint64_t base) {
-    const char* env = std::getenv("TESSERA_TEST_SEED");
-    return env ? base + std::strtoull(env, nullptr, 10) * 1000 : base;
-}
+using test::TestSeed;
 
 RenderSettings Settings(const std::string& integrator, int spp, uint64_t seed) {
     return test::Settings(integrator, spp, TestSeed(seed));
@@ -105,7 +101,7 @@ void ExpectWeightsConsistent(const Scene& scene, int max_depth, int samples, int
                 worst_sum = std::max(worst_sum, std::abs(sum - 1));
                 worst_match = std::max(worst_match, double(std::abs(weights[s] - w)));
                 EXPECT_NEAR(sum, 1.0, 1e-4) << "strategy (" << s << ", " << t << ")";
-                if (std::abs(sum - 1) > 1e-4 && std::getenv("BDPT_DEBUG")) {
+                if (std::abs(sum - 1) > 1e-4 && Verbose()) {
                     for (size_t k = 0; k < path.size(); ++k)
                         std::printf("  x%zu type %d delta %d bsdf %d light %d w %.4f\n", k,
                                     int(path[k].type), int(path[k].delta), path[k].bsdf != nullptr,
@@ -221,9 +217,7 @@ TEST(BdptVsPath, RoomWithSpecularObjectsAgreesBlockByBlock) {
     Room room = MakeRoom(true);
     std::vector<bool> mask(32 * 32, true);
     const Image path = RenderFrameLocal(*room.scene, Settings("path", 1024, 41), 2);
-    std::vector<Image> bdpt;
-    for (int r = 0; r < 8; ++r)
-        bdpt.push_back(RenderFrameLocal(*room.scene, Settings("bdpt", 16, 42 + 101 * r), 2));
+    const std::vector<Image> bdpt = test::RenderSeeds(*room.scene, Settings("bdpt", 16, 42));
     test::ExpectBlocksAgreeOverSeeds(bdpt, path, mask, 8, 5.4, 0.1, Verbose());
 }
 
@@ -237,12 +231,9 @@ TEST(BdptVsPath, VeachMisAgreesBlockByBlock) {
     RenderSettings ps = Settings("path", 1024, 43);
     ps.max_depth = 3;
     const Image path = RenderFrameLocal(scene, ps, 2);
-    std::vector<Image> bdpt;
-    for (int r = 0; r < 8; ++r) {
-        RenderSettings bs = Settings("bdpt", 32, 44 + 101 * r);
-        bs.max_depth = 3;
-        bdpt.push_back(RenderFrameLocal(scene, bs, 2));
-    }
+    RenderSettings bs = Settings("bdpt", 32, 44);
+    bs.max_depth = 3;
+    const std::vector<Image> bdpt = test::RenderSeeds(scene, bs);
     test::ExpectBlocksAgreeOverSeeds(bdpt, path, mask, 8, 5.4, 0.25, Verbose());
 }
 
@@ -309,19 +300,7 @@ TEST(BdptIntegratorNames, TheSceneFormatKnowsEveryIntegrator) {
 TEST(BdptDeterminism, ThreadCountLeavesTheImageBitIdentical) {
     Room room = MakeRoom(true, 24);
     RenderSettings s = Settings("bdpt", 4, 5);
-    const Image a = RenderFrameLocal(*room.scene, s, 2);
-    const Image b = RenderFrameLocal(*room.scene, s, 1);
-    ASSERT_EQ(a.pixels.size(), b.pixels.size());
-    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
-    double sum = 0;
-    for (float v : a.pixels) {
-        ASSERT_TRUE(std::isfinite(v));
-        sum += v;
-    }
-    EXPECT_GT(sum, 0);
-    s.seed += 1;
-    const Image c = RenderFrameLocal(*room.scene, s, 2);
-    EXPECT_NE(std::memcmp(a.pixels.data(), c.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+    test::ExpectThreadCountLeavesTheImageBitIdentical(*room.scene, s);
 }
 
 }  // namespace

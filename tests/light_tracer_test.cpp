@@ -110,33 +110,10 @@ TEST(LightTracerImportance, DiffuseFloorUnderPointLightMatchesTheClosedForm) {
 // the ceiling. Light and path tracing agree on every 8 x 8 block, the light itself left out
 // (light tracing reaches it only through its own point's connection to the lens).
 TEST(LightTracerVsPath, CornellBoxAgreesBlockByBlock) {
-    Scene scene;
-    const Material* white = Diffuse(scene, 0.7f);
-    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), white);  // seen from inside
-    const Material* red =
-        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.7f, 0.1f, 0.1f))));
-    const Material* green =
-        scene.AddMaterial(MakeDiffuseMaterial(MakeConstantTexture(Rgb(0.1f, 0.6f, 0.1f))));
-    scene.AddMesh(MakeBox(Vec3(-0.7f, -1, 0.1f), Vec3(-0.2f, 0.2f, 0.6f)), green);
-    scene.AddSphere(Vec3(0.45f, -0.65f, -0.1f), 0.35f, red);
-    Emission e{Rgb(6), false};
-    const Material* lamp = Diffuse(scene, 0);
-    scene.AddMesh(MakeQuad(Vec3(-0.3f, 0.98f, -0.3f), Vec3(0.3f, 0.98f, -0.3f),
-                           Vec3(0.3f, 0.98f, 0.3f), Vec3(-0.3f, 0.98f, 0.3f)),
-                  lamp, &e);
-    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, 32);
-    scene.Commit();
+    test::Room room = test::MakeRoom(false);
+    const Scene& scene = *room.scene;
     // The pixels that see the lamp, even in part, are left out.
-    std::vector<bool> mask(32 * 32, true);
-    for (int y = 0; y < 32; ++y)
-        for (int x = 0; x < 32; ++x)
-            for (int j = 0; j < 8; ++j)
-                for (int i = 0; i < 8; ++i) {
-                    SurfaceInteraction si;
-                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
-                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
-                    if (CameraHit(scene, p, &si) && si.material == lamp) mask[y * 32 + x] = false;
-                }
+    const std::vector<bool> mask = test::PixelsNotSeeing(scene, room.lamp);
     const Image path = RenderFrameLocal(scene, Settings("path", 256, 11), 2);
     const Image light = RenderFrameLocal(scene, Settings("light", 512, 12), 2);
     test::ExpectBlocksAgree(light, path, mask, 8, 3.5, 0.1, Verbose());
@@ -249,40 +226,17 @@ TEST(LightTracerVsPath, VeachMisFloorAgreesBlockByBlock) {
     ps.max_depth = 3;
     const Image path = RenderFrameLocal(scene, ps, 2);
     // Splats correlate neighbouring pixels' errors: standard errors from 8 seeds.
-    std::vector<Image> light;
-    for (int r = 0; r < 8; ++r) {
-        RenderSettings ls = Settings("light", 256, 82 + 101 * r);
-        ls.max_depth = 3;
-        light.push_back(RenderFrameLocal(scene, ls, 2));
-    }
+    RenderSettings ls = Settings("light", 256, 82);
+    ls.max_depth = 3;
+    const std::vector<Image> light = test::RenderSeeds(scene, ls);
     test::ExpectBlocksAgreeOverSeeds(light, path, mask, 4, 5.4, 0.3, Verbose());
 }
 
 // Light paths are keyed by their sample streams: the thread count changes no bit, the
 // seed changes the image.
 TEST(LightTracerDeterminism, ThreadCountLeavesTheImageBitIdentical) {
-    Scene scene;
-    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), Diffuse(scene, 0.7f));
-    scene.AddSphere(Vec3(0.3f, -0.6f, 0.2f), 0.35f,
-                    scene.AddMaterial(MakeDielectricMaterial(1.5f)));
-    Emission e{Rgb(4), true};
-    scene.AddSphere(Vec3(-0.4f, 0.7f, 0), 0.15f, Diffuse(scene, 0), &e);
-    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, 24);
-    scene.Commit();
-    RenderSettings s = Settings("light", 4, 5);
-    const Image a = RenderFrameLocal(scene, s, 2);
-    const Image b = RenderFrameLocal(scene, s, 1);
-    ASSERT_EQ(a.pixels.size(), b.pixels.size());
-    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
-    double sum = 0;
-    for (float v : a.pixels) {
-        ASSERT_TRUE(std::isfinite(v));
-        sum += v;
-    }
-    EXPECT_GT(sum, 0);
-    s.seed = 6;
-    const Image c = RenderFrameLocal(scene, s, 2);
-    EXPECT_NE(std::memcmp(a.pixels.data(), c.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+    test::Room room = test::MakeRoom(true, 24);
+    test::ExpectThreadCountLeavesTheImageBitIdentical(*room.scene, Settings("light", 4, 5));
 }
 
 }  // namespace

@@ -32,10 +32,7 @@ using test::SetCamera;
 
 bool Verbose() { return std::getenv("TESSERA_MLT_VERBOSE") != nullptr; }
 
-uint64_t TestSeed(uint64_t base) {
-    const char* env = std::getenv("TESSERA_TEST_SEED");
-    return env ? base + std::strtoull(env, nullptr, 10) * 1000 : base;
-}
+using test::TestSeed;
 
 RenderSettings MltSettings(int mutations_per_pixel, uint64_t seed) {
     RenderSettings s = test::Settings("mlt", mutations_per_pixel, TestSeed(seed));
@@ -259,13 +256,10 @@ TEST(MltVsPath, RoomAgreesQuarterByQuarter) {
     std::vector<double> mlt(32 * 32 * 3, 0.0);
     RenderSettings ms = MltSettings(256, 72);
     ms.mlt.chains = 256;
-    for (int r = 0; r < 4; ++r) {
-        const Image image = RenderFrameLocal(scene, ms, 2);
+    for (const Image& image : test::RenderSeeds(scene, ms, 4))
         for (int y = 0; y < 32; ++y)
             for (int x = 0; x < 32; ++x)
                 for (int c = 0; c < 3; ++c) mlt[(y * 32 + x) * 3 + c] += image.At(x, y, c) / 4;
-        ms.seed += 101;
-    }
     double worst = 0, all_mlt = 0, all_path = 0;
     for (int by = 0; by < 32; by += 16)
         for (int bx = 0; bx < 32; bx += 16) {
@@ -349,28 +343,8 @@ TEST(MltVsPath, VeachMisPathValuesAgreeDepthByDepth) {
 // Chains are keyed by the frame and their index: the thread count changes no bit; the seed
 // changes the image.
 TEST(MltDeterminism, ThreadCountLeavesTheImageBitIdentical) {
-    Scene scene;
-    scene.AddMesh(MakeBox(Vec3(-1, -1, -1), Vec3(1, 1, 1)), Diffuse(scene, 0.7f));
-    scene.AddSphere(Vec3(0.3f, -0.6f, 0.2f), 0.35f,
-                    scene.AddMaterial(MakeDielectricMaterial(1.5f)));
-    Emission e{Rgb(4), true};
-    scene.AddSphere(Vec3(-0.4f, 0.7f, 0), 0.15f, Diffuse(scene, 0), &e);
-    SetCamera(scene, Vec3(0, 0, -0.95f), Vec3(0, 0, 0), 70, 24);
-    scene.Commit();
-    RenderSettings s = MltSettings(4, 5);
-    const Image a = RenderFrameLocal(scene, s, 2);
-    const Image b = RenderFrameLocal(scene, s, 1);
-    ASSERT_EQ(a.pixels.size(), b.pixels.size());
-    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
-    double sum = 0;
-    for (float v : a.pixels) {
-        ASSERT_TRUE(std::isfinite(v));
-        sum += v;
-    }
-    EXPECT_GT(sum, 0);
-    s.seed += 1;
-    const Image c = RenderFrameLocal(scene, s, 2);
-    EXPECT_NE(std::memcmp(a.pixels.data(), c.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+    test::Room room = test::MakeRoom(true, 24);
+    test::ExpectThreadCountLeavesTheImageBitIdentical(*room.scene, MltSettings(4, 5));
 }
 
 }  // namespace

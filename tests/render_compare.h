@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -40,11 +41,10 @@ inline bool CameraHit(const Scene& scene, Vec2 p, SurfaceInteraction* si) {
     return scene.Intersect(scene.GetCamera().GenerateRay(CameraSample{p, Vec2(0.5f, 0.5f), 0}), si);
 }
 
-// Pixels whose whole area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees a
-// surface of `material`: where a light tracer and a path tracer must agree. Elsewhere the
-// camera sees specular surfaces (which light paths cannot reach through a pinhole) or
-// emitters directly.
-inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* material) {
+// Pixels by what their area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees:
+// with `all`, those whose every point sees a surface of `material`; without, those none of
+// whose points does.
+inline std::vector<bool> PixelsBySight(const Scene& scene, const Material* material, bool all) {
     const Vec2i res = scene.GetCamera().Resolution();
     std::vector<bool> mask(size_t(res.x) * res.y, true);
     for (int y = 0; y < res.y; ++y)
@@ -54,7 +54,8 @@ inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* materi
                     const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
                                  y - 0.25f + 1.5f * (j + 0.5f) / 8);
                     SurfaceInteraction si;
-                    if (!CameraHit(scene, p, &si) || si.material != material) {
+                    const bool sees = CameraHit(scene, p, &si) && si.material == material;
+                    if (sees != all) {
                         mask[y * res.x + x] = false;
                         break;
                     }
@@ -62,25 +63,46 @@ inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* materi
     return mask;
 }
 
-// Pixels none of whose area (an 8 x 8 grid over it, and a margin of a quarter pixel) sees
-// a surface of `material`: to leave emitters out of a comparison, partly covered pixels
-// too (a sliver of a bright light dominates a pixel's value and its variance).
+// Pixels that see only `material`: where a light tracer and a path tracer must agree.
+// Elsewhere the camera sees specular surfaces (which light paths cannot reach through a
+// pinhole) or emitters directly.
+inline std::vector<bool> PixelsSeeing(const Scene& scene, const Material* material) {
+    return PixelsBySight(scene, material, true);
+}
+
+// Pixels that see nothing of `material`: to leave emitters out of a comparison, partly
+// covered pixels too (a sliver of a bright light dominates a pixel's value and variance).
 inline std::vector<bool> PixelsNotSeeing(const Scene& scene, const Material* material) {
-    const Vec2i res = scene.GetCamera().Resolution();
-    std::vector<bool> mask(size_t(res.x) * res.y, true);
-    for (int y = 0; y < res.y; ++y)
-        for (int x = 0; x < res.x; ++x)
-            for (int j = 0; j < 8 && mask[y * res.x + x]; ++j)
-                for (int i = 0; i < 8; ++i) {
-                    const Vec2 p(x - 0.25f + 1.5f * (i + 0.5f) / 8,
-                                 y - 0.25f + 1.5f * (j + 0.5f) / 8);
-                    SurfaceInteraction si;
-                    if (CameraHit(scene, p, &si) && si.material == material) {
-                        mask[y * res.x + x] = false;
-                        break;
-                    }
-                }
-    return mask;
+    return PixelsBySight(scene, material, false);
+}
+
+// Renders of one job with `count` seeds (the settings' seed, then steps of 101).
+inline std::vector<Image> RenderSeeds(const Scene& scene, RenderSettings settings, int count = 8) {
+    std::vector<Image> images;
+    for (int r = 0; r < count; ++r) {
+        images.push_back(RenderFrameLocal(scene, settings, 2));
+        settings.seed += 101;
+    }
+    return images;
+}
+
+// The job on two threads and on one: the same bits, finite and not black; another seed:
+// another image.
+inline void ExpectThreadCountLeavesTheImageBitIdentical(const Scene& scene,
+                                                        RenderSettings settings) {
+    const Image a = RenderFrameLocal(scene, settings, 2);
+    const Image b = RenderFrameLocal(scene, settings, 1);
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float)), 0);
+    double sum = 0;
+    for (float v : a.pixels) {
+        ASSERT_TRUE(std::isfinite(v));
+        sum += v;
+    }
+    EXPECT_GT(sum, 0);
+    settings.seed += 1;
+    const Image c = RenderFrameLocal(scene, settings, 2);
+    EXPECT_NE(std::memcmp(a.pixels.data(), c.pixels.data(), a.pixels.size() * sizeof(float)), 0);
 }
 
 // One renderer's image (`light`) against another's (`path`, the reference), block by block (block x
@@ -212,14 +234,12 @@ inline double ExpectBlocksAgreeOverSeeds(const std::vector<Image>& renders, cons
 inline double ExpectUniformRenders(const Scene& scene, RenderSettings settings, double expected,
                                    double resolve = 0.01, bool verbose = false) {
     std::vector<double> means;
-    for (int r = 0; r < 8; ++r) {
-        const Image image = RenderFrameLocal(scene, settings, 2);
+    for (const Image& image : RenderSeeds(scene, settings)) {
         double sum = 0;
         for (int y = 0; y < image.height; ++y)
             for (int x = 0; x < image.width; ++x)
                 for (int c = 0; c < 3; ++c) sum += image.At(x, y, c);
         means.push_back(sum / (3.0 * image.width * image.height));
-        settings.seed += 101;
     }
     const Estimate e = MeanOf(means);
     if (verbose) std::printf("    mean %.5f, se %.5f (expected %.5f)\n", e.mean, e.se, expected);

@@ -4,6 +4,7 @@
 // render settings with long paths and small tiles.
 
 #include <cstdint>
+#include <cstdlib>
 #include <memory>
 #include <string>
 
@@ -25,6 +26,13 @@ inline void SetCamera(Scene& scene, Vec3 eye, Vec3 target, float fov, int size) 
     cam.fov_deg = fov;
     cam.resolution = Vec2i(size, size);
     scene.SetCamera(MakePerspectiveCamera(cam));
+}
+
+// A test's seed: `base`, or base + 1000 k when TESSERA_TEST_SEED=k (to look for rare
+// failures over many seeds).
+inline uint64_t TestSeed(uint64_t base) {
+    const char* env = std::getenv("TESSERA_TEST_SEED");
+    return env ? base + std::strtoull(env, nullptr, 10) * 1000 : base;
 }
 
 inline RenderSettings Settings(const std::string& integrator, int spp, uint64_t seed) {
