@@ -8,8 +8,8 @@
 // A CONFIG is a list of render-block overrides, e.g.
 //   "integrator=irradiance-cache spp=8 ic.accuracy=0.2 ic.samples=256"
 //   "integrator=photon spp=4 ic=1"   "integrator=path spp=64"
-// Keys: integrator, spp, max_depth, seed, sampler, rr_threshold, ic (photon: through the cache), ic.accuracy,
-// ic.samples, ic.passes, ic.gradients, photons, caustic, gather, light_paths_per_task,
+// Keys: integrator, spp, max_depth, seed, sampler, rr_threshold, ic (photon: through the cache),
+// ic.accuracy, ic.samples, ic.passes, ic.gradients, photons, caustic, gather, light_paths_per_task,
 // mlt.bootstrap, mlt.chains, mlt.p_large. bench/run_gi.sh and bench/run_bidir.sh render the
 // references and run the standard comparisons. Columns: wall seconds, camera samples
 // (pixels x spp; MLT: mutations) per second, RMSE, relative bias, RMSE^2 x seconds (lower
@@ -92,8 +92,7 @@ void Apply(const std::string& config, RenderSettings* s) {
             const std::optional<SamplerType> type = ParseSamplerType(v);
             if (!type) throw std::invalid_argument("unknown sampler " + v);
             s->sampler = *type;
-        }
-        else if (k == "mlt.bootstrap")
+        } else if (k == "mlt.bootstrap")
             s->mlt.bootstrap_samples = std::stoi(v);
         else if (k == "mlt.chains")
             s->mlt.chains = std::stoi(v);
