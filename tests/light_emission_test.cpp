@@ -19,8 +19,8 @@
 #include <utility>
 #include <vector>
 
-// About sixteen chi-square tests of correct distributions run in this binary.
-#define TESSERA_CHI_SQUARE_FAMILY_SIZE 16
+// About seventeen chi-square tests of correct distributions run in this binary.
+#define TESSERA_CHI_SQUARE_FAMILY_SIZE 17
 #include "chi_square.h"
 #include "core/math.h"
 #include "core/rng.h"
@@ -189,6 +189,12 @@ TEST(LightEmissionTest, InfiniteLightPhotonsDeliverTheRightPowerToASphere) {
         {"Directional", Prepared(MakeDirectionalLight(Vec3(0.3f, -1, 0.2f), Rgb(2))),
          kPiD * a * a * 2},
         {"Environment", Prepared(MakeConstantEnvironmentLight(Rgb(1.5f))),
+         4 * kPiD * kPiD * a * a * 1.5},
+        // A uniform map, turned: the same power as the uniform environment.
+        {"EnvironmentMap",
+         Prepared(MakeImageEnvironmentLight(
+             MakeEnvironmentMapTables(8, 4, std::vector<Rgb>(32, Rgb(1.5f))), Rgb(1),
+             Transform::Rotate(40, Vec3(1, 1, 0)))),
          4 * kPiD * kPiD * a * a * 1.5},
     };
     const int kN = 400000;
@@ -382,11 +388,17 @@ TEST(LightEmissionChiSquareTest, InfiniteLightOriginsAreUniformOnTheDisk) {
     Vec3 c = bounds.Center();
     float r = bounds.Radius();
     uint64_t seed = 160;
-    for (const char* name : {"Directional", "Environment"}) {
+    for (const char* name : {"Directional", "Environment", "EnvironmentMap"}) {
         SCOPED_TRACE(name);
-        auto light = std::string(name) == "Directional"
-                         ? Prepared(MakeDirectionalLight(Vec3(0.3f, -1, 0.2f), Rgb(1)))
-                         : Prepared(MakeConstantEnvironmentLight(Rgb(1)));
+        const std::string n = name;
+        auto light =
+            n == "Directional" ? Prepared(MakeDirectionalLight(Vec3(0.3f, -1, 0.2f), Rgb(1)))
+            : n == "Environment"
+                ? Prepared(MakeConstantEnvironmentLight(Rgb(1)))
+                : Prepared(MakeImageEnvironmentLight(
+                      MakeEnvironmentMapTables(
+                          4, 2, {Rgb(1), Rgb(2), Rgb(0), Rgb(3), Rgb(1), Rgb(1), Rgb(5), Rgb(0)}),
+                      Rgb(1)));
         Grid grid{0, 1, 0, 2 * kPiD, 16, 32, 1e-5};
         auto to_grid = [&](const LightLeSample& s) {
             Frame frame(-s.ray.d);

@@ -441,9 +441,12 @@ TEST(SceneFormat, ListSceneFilesInOrderOfAppearance) {
              {"type": "mesh", "file": "meshes/n.obj", "material": "d"}],
   "materials": {"d": {"type": "diffuse", "reflectance": "t"}},
   "objects": {"o": {"shapes": [{"type": "mesh", "file": "meshes/../m.obj", "material": "d"}]}},
-  "textures": {"t": {"type": "image", "file": "t.ppm"}}
+  "textures": {"t": {"type": "image", "file": "t.ppm"}},
+  "lights": [{"type": "environment", "file": "sky/map.hdr", "scale": 2}]
 })");
-    std::vector<std::string> expected = {"m.obj", "meshes/n.obj", "t.ppm"};
+    dir.Write("sky/map.hdr", "");
+    // The environment map travels with the scene too (a farm's workers need it).
+    std::vector<std::string> expected = {"m.obj", "meshes/n.obj", "sky/map.hdr", "t.ppm"};
     EXPECT_EQ(ListSceneFiles(path), expected);
     EXPECT_TRUE(ListSceneFiles(ExampleScene("cornell-box")).empty());
     std::vector<std::string> plates = {"plate1.obj", "plate2.obj", "plate3.obj", "plate4.obj"};

@@ -4,7 +4,10 @@
 // (Scene::AddMesh / AddSphere with an Emission).
 
 #include <memory>
+#include <vector>
 
+#include "core/sampling.h"
+#include "core/transform.h"
 #include "light/light.h"
 
 namespace tessera {
@@ -20,5 +23,28 @@ std::unique_ptr<Light> MakeSpotLight(const Vec3& position, const Vec3& target, R
 std::unique_ptr<Light> MakeDirectionalLight(const Vec3& direction, Rgb irradiance);
 // Uniform radiance from every direction.
 std::unique_ptr<Light> MakeConstantEnvironmentLight(Rgb radiance);
+
+// A latitude-longitude environment map and its sampling tables, in the map's own frame
+// (image_environment_light.cpp gives the mapping): made once per map, shared by every light
+// that shows it, whatever its scale and rotation.
+struct EnvironmentMapTables {
+    int width = 0, height = 0;
+    std::vector<Rgb> texels;      // row-major, top row first; negative values clamped to 0
+    Rgb integral;                 // integral of the radiance over the sphere (W / m^2)
+    Distribution2D distribution;  // over (u, v): luminance times sin theta
+
+    // The map-frame direction of (u, v) and back.
+    static Vec2 DirectionToUv(const Vec3& d);
+    static Vec3 UvToDirection(Vec2 uv);
+    // The radiance of the texel (u, v) falls in.
+    Rgb Texel(Vec2 uv) const;
+    // The solid angle of a texel of row y.
+    float TexelSolidAngle(int y) const;
+};
+std::shared_ptr<const EnvironmentMapTables> MakeEnvironmentMapTables(int width, int height,
+                                                                     std::vector<Rgb> texels);
+// Radiance from the map times `scale`, the map turned by `rotation` (map to world).
+std::unique_ptr<Light> MakeImageEnvironmentLight(std::shared_ptr<const EnvironmentMapTables> tables,
+                                                 Rgb scale, const Transform& rotation = {});
 
 }  // namespace tessera

@@ -297,7 +297,37 @@ void BuildMaterial(int i, const std::vector<TextureRef>& textures, const SceneRe
     (*built)[i] = MakeMaterial(m, textures, records, *built);
 }
 
-std::unique_ptr<Light> MakeLight(const LightRecord& l) {
+// An environment map's tables from its file: RGB (a single channel is grey; alpha and
+// other channels are ignored), decoded within the scene's limits.
+std::shared_ptr<const EnvironmentMapTables> LoadEnvironmentMap(const LightRecord& l,
+                                                               const SceneRecords& records) {
+    const std::string shown = ShownName(l.path, records);
+    try {
+        const Image image =
+            DecodeImage(ReadReferencedFile(l.path, records), shown, records.image_limits);
+        const int channels = image.NumChannels();
+        if (channels < 1) throw std::runtime_error("the image has no channels");
+        int rgb[3] = {0, 0, 0};
+        if (channels >= 3) {
+            const char* names[3] = {"R", "G", "B"};
+            for (int c = 0; c < 3; ++c) {
+                const int i = image.ChannelIndex(names[c]);
+                rgb[c] = i >= 0 ? i : c;
+            }
+        }
+        std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
+        for (int y = 0; y < image.height; ++y)
+            for (int x = 0; x < image.width; ++x)
+                texels[size_t(y) * image.width + x] =
+                    Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
+        return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
+    } catch (const std::exception& e) {
+        throw SceneError(l.path_where, "cannot load environment map '" + shown +
+                                           "': " + ReaderMessage(e, records.sandbox_root));
+    }
+}
+
+std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& records) {
     switch (l.kind) {
         case LightKind::kPoint:
             return MakePointLight(l.position, l.value);
@@ -306,7 +336,10 @@ std::unique_ptr<Light> MakeLight(const LightRecord& l) {
         case LightKind::kDirectional:
             return MakeDirectionalLight(l.direction, l.value);
         case LightKind::kEnvironment:
-            return MakeConstantEnvironmentLight(l.value);
+            if (!l.path.empty())
+                return MakeImageEnvironmentLight(LoadEnvironmentMap(l, records), l.scale,
+                                                 l.rotation);
+            return MakeConstantEnvironmentLight(l.value * l.scale);
     }
     throw std::logic_error("unknown light kind");
 }
@@ -569,7 +602,7 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
             steps.push_back(inst.animation->Evaluate(t) * inst.transform);
         scene.AddMovingInstance(prototype_of[inst.object], std::move(steps));
     }
-    for (const LightRecord& l : records.lights) scene.AddLight(MakeLight(l));
+    for (const LightRecord& l : records.lights) scene.AddLight(MakeLight(l, records));
     scene.SetCamera(MakeCamera(records.camera, settings.resolution, t0, t1));
     scene.Commit();
     return out;

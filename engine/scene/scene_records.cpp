@@ -1101,7 +1101,7 @@ InstanceRecord ParseInstance(const JsonValue& v, const Context& ctx) {
 
 const std::vector<std::string> kLightTypes = {"point", "spot", "directional", "environment"};
 
-LightRecord ParseLight(const JsonValue& v) {
+LightRecord ParseLight(const JsonValue& v, const Context& ctx) {
     JsonObject o = v.AsObject();
     LightRecord l;
     l.where = v.Where();
@@ -1132,9 +1132,26 @@ LightRecord ParseLight(const JsonValue& v) {
             l.direction = Normalize(NonZeroVec3(o.Required("direction")));
             l.value = NonNegativeRgb(o.Required("irradiance"));
             break;
-        case LightKind::kEnvironment:
-            l.value = NonNegativeRgb(o.Required("radiance"));
+        case LightKind::kEnvironment: {
+            auto file = o.Get("file");
+            if (file && o.Has("radiance"))
+                file->Fail("an environment light has either 'radiance' or 'file', not both");
+            if (file) {
+                l.path = ctx.ResolveFile(*file, "environment map");
+                l.path_where = file->Where();
+            } else {
+                l.value = NonNegativeRgb(o.Required("radiance"));
+            }
+            if (auto s = o.Get("scale")) l.scale = NonNegativeRgb(*s);
+            if (auto r = o.Get("rotate")) {
+                JsonObject ro = r->AsObject();
+                const Vec3 axis = NonZeroVec3(ro.Required("axis"));
+                const float angle = ro.Required("angle").AsFloat();
+                ro.Finish("rotate");
+                l.rotation = Transform::Rotate(angle, axis);
+            }
             break;
+        }
     }
     o.Finish("a " + kLightTypes[type] + " light");
     return l;
@@ -1196,7 +1213,7 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
             rec.instances.push_back(ParseInstance(i, ctx));
     }
     if (lights) {
-        for (const JsonValue& l : lights->Elements()) rec.lights.push_back(ParseLight(l));
+        for (const JsonValue& l : lights->Elements()) rec.lights.push_back(ParseLight(l, ctx));
     }
 
     // Sections were parsed in dependency order; list their files in the file's order.

@@ -131,6 +131,11 @@ struct LightRecord {
     Vec3 position, target, direction;
     Rgb value;  // point, spot: intensity; directional: irradiance; environment: radiance
     float cone_angle = 30, falloff_start = 25;  // spot, degrees from the axis
+    // Environment: a latitude-longitude map (its resolved path; empty: uniform `value`),
+    // a factor on its radiance, and the map's rotation into the world.
+    std::string path, path_where;
+    Rgb scale = Rgb(1);
+    Transform rotation;
 };
 
 struct CameraRecord {
