@@ -781,6 +781,8 @@ std::vector<RecordCase> EveryRecordKind() {
         {"material blend", SceneWith(R"("m": {@"type": "blend", "weight": 0.5,
                             "materials": [{"type": "diffuse"}, {"type": "mirror"}]})"),
          "/materials/m"},
+        {"material measured", SceneWith(R"("m": {@"type": "measured", "file": "one.brdf"})"),
+         "/materials/m"},
         {"blended material", SceneWith(R"("m": {"type": "blend", "weight": 0.5,
                             "materials": [{"type": "diffuse"}, {@"type": "mirror"}]})"),
          "/materials/m/materials/1"},
@@ -816,6 +818,10 @@ std::vector<RecordCase> EveryRecordKind() {
         {"light directional",
          light(R"("type": "directional", "direction": [0, -1, 0], "irradiance": 1)"), "/lights/0"},
         {"light environment", light(R"("type": "environment", "radiance": 1)"), "/lights/0"},
+        {"light environment map",
+         light(
+             R"("type": "environment", "file": "t.ppm", "rotate": {"axis": [0, 1, 0], "angle": 30})"),
+         "/lights/0"},
     };
 }
 
@@ -832,6 +838,8 @@ TEST(SceneErrors, EveryRecordKindRejectsAnUnknownKey) {
     TempDir dir;
     dir.Write("tri.obj", kTriangleObj);
     dir.Write("t.ppm", "P3\n1 1\n255\n10 20 30\n");
+    // A measured BRDF of one sample at one wavelength: 0.3 everywhere.
+    dir.Write("one.brdf", "1\n550\n0.5 0 0.5 3.14159 0.3\n");
     for (const RecordCase& c : EveryRecordKind()) {
         SCOPED_TRACE(c.kind);
         std::string valid = dir.Write("scene.json", Without(c.text, "@", ""));

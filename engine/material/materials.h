@@ -12,6 +12,8 @@
 
 namespace tessera {
 
+class MeasuredBrdfTable;  // material/measured_brdf.h
+
 using TextureRef = std::shared_ptr<const Texture>;
 
 std::unique_ptr<Texture> MakeConstantTexture(Rgb value);
@@ -43,6 +45,9 @@ std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha,
 // (alpha = 0: a smooth coat).
 std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha,
                                               MicrofacetType type = MicrofacetType::kGgx);
+// A measured isotropic BRDF (a MERL table, or a resampled irregular measurement),
+// reflecting alike on both sides; directions sampled by the cosine.
+std::unique_ptr<Material> MakeMeasuredMaterial(std::shared_ptr<const MeasuredBrdfTable> table);
 // A linear blend (1 - w) a + w b of two materials, w the channel average of `weight`
 // (values in [0, 1]) at the surface point. `a` and `b` are not owned: they must outlive
 // the blend (in a scene, both are the scene's materials too).

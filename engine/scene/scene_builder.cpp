@@ -1,6 +1,7 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +16,7 @@
 #include "light/lights.h"
 #include "material/image_texture.h"
 #include "material/materials.h"
+#include "material/measured_brdf.h"
 #include "scene/mesh.h"
 
 namespace tessera {
@@ -255,6 +257,23 @@ TextureRef BlendWeight(const ColorParam& p, const std::vector<TextureRef>& textu
     return t;
 }
 
+// A measured BRDF's table from its file (MERL .binary, or an irregular .brdf resampled).
+std::shared_ptr<const MeasuredBrdfTable> LoadMeasuredBrdf(const MaterialRecord& m,
+                                                          const SceneRecords& records) {
+    const std::string shown = ShownName(m.path, records);
+    try {
+        const std::string bytes = ReadReferencedFile(m.path, records);
+        const bool merl =
+            m.path.size() >= 7 && std::equal(m.path.end() - 7, m.path.end(), ".binary",
+                                             [](char a, char b) { return std::tolower(a) == b; });
+        return std::make_shared<const MeasuredBrdfTable>(merl ? ParseMerlBinary(bytes, shown)
+                                                              : ParseIrregularBrdf(bytes, shown));
+    } catch (const std::exception& e) {
+        throw SceneError(m.path_where, "cannot load measured BRDF '" + shown +
+                                           "': " + ReaderMessage(e, records.sandbox_root));
+    }
+}
+
 std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
                                        const std::vector<TextureRef>& textures,
                                        const SceneRecords& records,
@@ -282,6 +301,8 @@ std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
         case MaterialKind::kBlend:
             return MakeBlendMaterial(built[m.parts[0]].get(), built[m.parts[1]].get(),
                                      BlendWeight(m.weight, textures, records));
+        case MaterialKind::kMeasured:
+            return MakeMeasuredMaterial(LoadMeasuredBrdf(m, records));
     }
     throw std::logic_error("unknown material kind");
 }

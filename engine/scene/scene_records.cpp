@@ -668,9 +668,9 @@ void ParseAlpha(JsonObject& o, MaterialRecord* m, float default_alpha, bool allo
 }
 
 // In MaterialKind's order.
-const std::vector<std::string> kMaterialTypes = {
-    "diffuse",         "mirror",  "dielectric", "roughconductor",
-    "roughdielectric", "plastic", "conductor",  "blend"};
+const std::vector<std::string> kMaterialTypes = {"diffuse",        "mirror",          "dielectric",
+                                                 "roughconductor", "roughdielectric", "plastic",
+                                                 "conductor",      "blend",           "measured"};
 
 float ParseEta(JsonObject& o) {
     auto e = o.Get("eta");
@@ -785,6 +785,19 @@ MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const 
                     w.Fail("expected a number in [0, 1] or a texture name, got " + w.KindName());
                 m.weight.value = Rgb(InRange(w, 0, 1, false, false));
             }
+            break;
+        }
+        case MaterialKind::kMeasured: {
+            JsonValue file = o.Required("file");
+            m.path = ctx.ResolveFile(file, "BRDF file");
+            m.path_where = file.Where();
+            std::string ext = fs::path(m.path).extension().string();
+            for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+            if (ext != ".binary" && ext != ".brdf")
+                file.Fail(
+                    "a measured BRDF is a MERL '.binary' file or an irregularly sampled "
+                    "'.brdf' file, got '" +
+                    ext + "'");
             break;
         }
     }

@@ -50,7 +50,8 @@ enum class MaterialKind {
     kRoughDielectric,
     kPlastic,
     kConductor,
-    kBlend
+    kBlend,
+    kMeasured
 };
 
 // A material, named (from the "materials" section) or inline in a blend (name empty).
@@ -68,6 +69,8 @@ struct MaterialRecord {
     // SceneRecords::materials; no cycles) and w the weight (value.r or a texture).
     std::array<int, 2> parts = {-1, -1};
     ColorParam weight;
+    // measured: the BRDF file (resolved) and where it was named.
+    std::string path, path_where;
 };
 
 struct EmissionRecord {
