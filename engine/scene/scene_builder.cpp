@@ -5,8 +5,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
+#include <mutex>
 #include <stdexcept>
+#include <tuple>
 
 #include "camera/perspective.h"
 #include "core/animation.h"
@@ -257,6 +260,37 @@ TextureRef BlendWeight(const ColorParam& p, const std::vector<TextureRef>& textu
     return t;
 }
 
+// Tables made from a file's bytes (an environment map's sampling tables, a measured BRDF),
+// shared while any scene holds them: the frames of an animation, rebuilt frame by frame,
+// and scenes that name the same file twice make each table once. Keyed by the bytes' hash
+// and size and how they are read.
+template <typename T>
+class FileTableCache {
+  public:
+    std::shared_ptr<const T> Get(std::string_view bytes, const std::string& how,
+                                 const std::function<std::shared_ptr<const T>()>& make) {
+        // FNV-1a over the bytes.
+        uint64_t h = 0xcbf29ce484222325ull;
+        for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
+        const Key key{h, bytes.size(), how};
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            auto it = entries_.find(key);
+            if (it != entries_.end())
+                if (std::shared_ptr<const T> hit = it->second.lock()) return hit;
+        }
+        std::shared_ptr<const T> made = make();
+        std::lock_guard<std::mutex> lock(mutex_);
+        entries_[key] = made;
+        return made;
+    }
+
+  private:
+    using Key = std::tuple<uint64_t, size_t, std::string>;
+    std::mutex mutex_;
+    std::map<Key, std::weak_ptr<const T>> entries_;
+};
+
 // A measured BRDF's table from its file (MERL .binary, or an irregular .brdf resampled).
 std::shared_ptr<const MeasuredBrdfTable> LoadMeasuredBrdf(const MaterialRecord& m,
                                                           const SceneRecords& records) {
@@ -266,8 +300,11 @@ std::shared_ptr<const MeasuredBrdfTable> LoadMeasuredBrdf(const MaterialRecord& 
         const bool merl =
             m.path.size() >= 7 && std::equal(m.path.end() - 7, m.path.end(), ".binary",
                                              [](char a, char b) { return std::tolower(a) == b; });
-        return std::make_shared<const MeasuredBrdfTable>(merl ? ParseMerlBinary(bytes, shown)
-                                                              : ParseIrregularBrdf(bytes, shown));
+        static FileTableCache<MeasuredBrdfTable> cache;
+        return cache.Get(bytes, merl ? "merl" : "irregular", [&] {
+            return std::make_shared<const MeasuredBrdfTable>(
+                merl ? ParseMerlBinary(bytes, shown) : ParseIrregularBrdf(bytes, shown));
+        });
     } catch (const std::exception& e) {
         throw SceneError(m.path_where, "cannot load measured BRDF '" + shown +
                                            "': " + ReaderMessage(e, records.sandbox_root));
@@ -318,30 +355,39 @@ void BuildMaterial(int i, const std::vector<TextureRef>& textures, const SceneRe
     (*built)[i] = MakeMaterial(m, textures, records, *built);
 }
 
-// An environment map's tables from its file: RGB (a single channel is grey; alpha and
-// other channels are ignored), decoded within the scene's limits.
+// An environment map's tables from its file's bytes: RGB (a single channel is grey; alpha
+// and other channels are ignored), decoded within the scene's limits.
+std::shared_ptr<const EnvironmentMapTables> EnvironmentMapTablesOf(const std::string& bytes,
+                                                                   const std::string& shown,
+                                                                   const SceneRecords& records) {
+    const Image image = DecodeImage(bytes, shown, records.image_limits);
+    const int channels = image.NumChannels();
+    if (channels < 1) throw std::runtime_error("the image has no channels");
+    int rgb[3] = {0, 0, 0};
+    if (channels >= 3) {
+        const char* names[3] = {"R", "G", "B"};
+        for (int c = 0; c < 3; ++c) {
+            const int i = image.ChannelIndex(names[c]);
+            rgb[c] = i >= 0 ? i : c;
+        }
+    }
+    std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x)
+            texels[size_t(y) * image.width + x] =
+                Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
+    return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
+}
+
 std::shared_ptr<const EnvironmentMapTables> LoadEnvironmentMap(const LightRecord& l,
                                                                const SceneRecords& records) {
     const std::string shown = ShownName(l.path, records);
     try {
-        const Image image =
-            DecodeImage(ReadReferencedFile(l.path, records), shown, records.image_limits);
-        const int channels = image.NumChannels();
-        if (channels < 1) throw std::runtime_error("the image has no channels");
-        int rgb[3] = {0, 0, 0};
-        if (channels >= 3) {
-            const char* names[3] = {"R", "G", "B"};
-            for (int c = 0; c < 3; ++c) {
-                const int i = image.ChannelIndex(names[c]);
-                rgb[c] = i >= 0 ? i : c;
-            }
-        }
-        std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
-        for (int y = 0; y < image.height; ++y)
-            for (int x = 0; x < image.width; ++x)
-                texels[size_t(y) * image.width + x] =
-                    Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
-        return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
+        const std::string bytes = ReadReferencedFile(l.path, records);
+        static FileTableCache<EnvironmentMapTables> cache;
+        // The format is the extension's (DecodeImage): part of the key.
+        return cache.Get(bytes, std::filesystem::path(l.path).extension().string(),
+                         [&] { return EnvironmentMapTablesOf(bytes, shown, records); });
     } catch (const std::exception& e) {
         throw SceneError(l.path_where, "cannot load environment map '" + shown +
                                            "': " + ReaderMessage(e, records.sandbox_root));
