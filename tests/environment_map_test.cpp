@@ -4,7 +4,7 @@
 // scene loader against closed forms: a diffuse sphere under a uniform map, and under a
 // half sky, upright and turned by the light's rotation.
 
-#define TESSERA_CHI_SQUARE_FAMILY_SIZE 2
+#define TESSERA_CHI_SQUARE_FAMILY_SIZE 5
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -20,6 +20,7 @@
 #include "core/sampling.h"
 #include "io/image_io.h"
 #include "light/lights.h"
+#include "light/structured_sampling.h"
 #include "plan/local_runner.h"
 #include "render_compare.h"
 #include "scene/scene_loader.h"
@@ -93,20 +94,34 @@ TEST(EnvironmentMap, MappingIsTheDocumentedOne) {
     }
 }
 
-// SampleLi's directions follow PdfLi, for the map upright and turned: counts per texel of
-// the map's own frame against the integral of PdfLi over it (d omega = 2 pi^2 sin theta
-// du dv).
+// SampleLi's directions follow PdfLi, for the map's distribution upright and turned, for
+// structured importance sampling, and for the cosine (about a receiver's normal, either
+// side) and uniform choices: counts per texel of the map's own frame against the integral
+// of PdfLi over it (d omega = 2 pi^2 sin theta du dv).
 TEST(EnvironmentMap, SamplingMatchesItsPdf) {
     const auto map = UnevenMap();
-    for (const Transform& rotation : {Transform(), Transform::Rotate(37, Vec3(1, 2, -0.5f))}) {
-        auto light = MakeImageEnvironmentLight(map, Rgb(1), rotation);
+    struct Case {
+        Transform rotation;
+        EnvironmentSampling sampling;
+    };
+    for (const Case& c :
+         {Case{Transform(), EnvironmentSampling::kDistribution},
+          Case{Transform::Rotate(37, Vec3(1, 2, -0.5f)), EnvironmentSampling::kDistribution},
+          Case{Transform::Rotate(37, Vec3(1, 2, -0.5f)), EnvironmentSampling::kCosine},
+          Case{Transform(), EnvironmentSampling::kUniform},
+          Case{Transform::Rotate(-70, Vec3(0, 1, 1)), EnvironmentSampling::kStructured}}) {
+        SCOPED_TRACE(kEnvironmentSamplingNames[int(c.sampling)]);
+        const Transform& rotation = c.rotation;
+        auto light = MakeImageEnvironmentLight(
+            map, Rgb(1), rotation, c.sampling,
+            std::make_shared<const StructuredSampling>(StructuredSampling::Build(*map, {})));
         light->Preprocess(UnitBounds());
         const Transform to_map = rotation.Inverted();
         const Grid grid{0, 1, 0, 1, map->width, map->height};
         std::vector<double> observed(grid.CellCount(), 0), expected(grid.CellCount(), 0);
         constexpr int kSamples = 400000;
         Pcg32 rng(TestSeed(11));
-        const LightSampleContext ctx{Vec3(0.1f, 0.2f, 0.3f), Vec3()};
+        const LightSampleContext ctx{Vec3(0.1f, 0.2f, 0.3f), Normalize(Vec3(0.3f, 1, 0.2f))};
         int pdf_mismatches = 0;
         for (int i = 0; i < kSamples; ++i) {
             auto s = light->SampleLi(ctx, Vec2(rng.NextFloat(), rng.NextFloat()));
@@ -120,8 +135,11 @@ TEST(EnvironmentMap, SamplingMatchesItsPdf) {
             observed[grid.Cell(uv.x, uv.y)] += 1;
         }
         EXPECT_LT(pdf_mismatches, kSamples / 1000);
+        // SampleLi gives nothing toward a black texel (the uniform and cosine choices draw
+        // those directions too): none are expected there.
         for (int y = 0; y < grid.ny; ++y)
             for (int x = 0; x < grid.nx; ++x) {
+                if (map->texels[size_t(y) * map->width + x].IsBlack()) continue;
                 auto pdf_uv = [&](double u, double v) {
                     const Vec3 d = rotation.Vector(
                         EnvironmentMapTables::UvToDirection(Vec2(float(u), float(v))));
@@ -163,6 +181,22 @@ TEST(EnvironmentMap, IntegralsAgreeWithTheTexelSum) {
     EXPECT_NEAR(a.mean, exact, 4.5 * a.se + 1e-6);
     EXPECT_NEAR(b.mean, exact, 4.5 * b.se);
     EXPECT_LT(a.se * 3, b.se);
+    // The comparison samplers are unbiased too.
+    for (EnvironmentSampling sampling :
+         {EnvironmentSampling::kUniform, EnvironmentSampling::kCosine}) {
+        SCOPED_TRACE(kEnvironmentSamplingNames[int(sampling)]);
+        auto other = MakeImageEnvironmentLight(map, Rgb(0.5f),
+                                               Transform::Rotate(120, Vec3(0, 0, 1)), sampling);
+        other->Preprocess(UnitBounds());
+        std::vector<double> values;
+        for (int i = 0; i < kSamples; ++i) {
+            auto s =
+                other->SampleLi({Vec3(), Vec3(0, 0, 1)}, Vec2(rng.NextFloat(), rng.NextFloat()));
+            values.push_back(s ? s->L.g / s->pdf : 0.0);
+        }
+        const test::Estimate e = test::MeanOf(values);
+        EXPECT_NEAR(e.mean, exact, 4.5 * e.se);
+    }
 }
 
 // Light paths: their power is Phi (the map's integral over a disk of the scene's bounding
@@ -262,7 +296,8 @@ TEST_F(EnvironmentMapRender, UniformMapGivesAlbedoTimesRadiance) {
 
 // Under a sky of radiance 1 above the horizon and 0 below, a diffuse sphere's radiance at
 // normal n is albedo (1 + n . up) / 2, where up is the sky's zenith: +y upright, -x with the
-// map turned by 90 degrees about +z. Checked over the pixels well inside the silhouette,
+// map turned by 90 degrees about +z (and upright again with structured and with cosine
+// sampling of the sky). Checked over the pixels well inside the silhouette,
 // against the closed form at each pixel's centre (the sphere's normal varies slowly there).
 TEST_F(EnvironmentMapRender, HalfSkyAndItsRotation) {
     WriteMap(dir_ / "sky.exr", 16, 8, [](float, float v) { return v < 0.5f ? Rgb(1) : Rgb(0); });
@@ -273,6 +308,10 @@ TEST_F(EnvironmentMapRender, HalfSkyAndItsRotation) {
     for (
         const Case& c :
         {Case{R"({"type": "environment", "file": "sky.exr"})", Vec3(0, 1, 0)},
+         Case{
+             R"({"type": "environment", "file": "sky.exr", "sampling": "structured", "strata": 40})",
+             Vec3(0, 1, 0)},
+         Case{R"({"type": "environment", "file": "sky.exr", "sampling": "cosine"})", Vec3(0, 1, 0)},
          Case{
              R"({"type": "environment", "file": "sky.exr", "rotate": {"axis": [0, 0, 1], "angle": 90}})",
              Vec3(-1, 0, 0)}}) {

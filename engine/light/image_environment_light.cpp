@@ -8,6 +8,10 @@
 // is not mirrored as seen from inside. World directions are the map's rotated by
 // `rotation`; the tables stay in the map's frame, so a rotated light shares them.
 //
+// Toward a receiving point, directions come from the map's distribution, or from structured
+// importance sampling's strata, or (settings, for comparison) uniformly over the sphere, or
+// by the cosine about the receiver's normal on either side of it with probability 1/2 each.
+//
 // Radiance is piecewise constant over texels (the texel a direction falls in), exactly the
 // function the sampling tables describe: directions are drawn by a 2D piecewise-constant
 // distribution over (u, v) proportional to luminance times sin theta (at the row's
@@ -22,6 +26,7 @@
 #include "core/sampling.h"
 #include "core/transform.h"
 #include "light/lights.h"
+#include "light/structured_sampling.h"
 
 namespace tessera {
 namespace {
@@ -31,11 +36,14 @@ float Luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f *
 class ImageEnvironmentLight final : public Light {
   public:
     ImageEnvironmentLight(std::shared_ptr<const EnvironmentMapTables> tables, Rgb scale,
-                          const Transform& rotation)
+                          const Transform& rotation, EnvironmentSampling sampling,
+                          std::shared_ptr<const StructuredSampling> structured)
         : tables_(std::move(tables)),
+          structured_(std::move(structured)),
           scale_(scale),
           to_world_(rotation),
-          to_map_(rotation.Inverted()) {}
+          to_map_(rotation.Inverted()),
+          sampling_(sampling) {}
 
     LightType Type() const override { return LightType::kInfinite; }
     Rgb Phi() const override {
@@ -49,12 +57,48 @@ class ImageEnvironmentLight final : public Light {
     std::optional<LightLiSample> SampleLi(const LightSampleContext& ctx, Vec2 u) const override {
         float pdf = 0;
         Vec3 wi;
-        const Rgb L = SampleDirection(u, &wi, &pdf);
+        Rgb L;
+        switch (Sampling(ctx)) {
+            case EnvironmentSampling::kUniform:
+                wi = SampleUniformSphere(u);
+                pdf = UniformSpherePdf();
+                L = Le(wi);
+                break;
+            case EnvironmentSampling::kCosine: {
+                // Either side of the surface with probability 1/2 (the receiver's normal
+                // does not say which side it is seen from).
+                const bool below = u.x >= 0.5f;
+                Vec3 local = SampleCosineHemisphere(
+                    Vec2(std::min(2 * (below ? u.x - 0.5f : u.x), kOneMinusEpsilon), u.y));
+                if (below) local.z = -local.z;
+                wi = Frame(Normalize(ctx.n)).ToWorld(local);
+                pdf = 0.5f * CosineHemispherePdf(std::abs(local.z));
+                L = Le(wi);
+                break;
+            }
+            case EnvironmentSampling::kDistribution:
+                L = SampleDirection(u, &wi, &pdf);
+                break;
+            case EnvironmentSampling::kStructured:
+                wi = Normalize(to_world_.Vector(structured_->Sample(u, &pdf)));
+                L = Le(wi);
+                break;
+        }
         if (!(pdf > 0) || L.IsBlack()) return std::nullopt;
         return LightLiSample{L, wi, pdf, ctx.p + wi * (2 * scene_radius_), Vec3()};
     }
-    float PdfLi(const LightSampleContext&, const Vec3& wi, const Vec3&,
+    float PdfLi(const LightSampleContext& ctx, const Vec3& wi, const Vec3&,
                 const Vec3&) const override {
+        switch (Sampling(ctx)) {
+            case EnvironmentSampling::kUniform:
+                return UniformSpherePdf();
+            case EnvironmentSampling::kCosine:
+                return 0.5f * CosineHemispherePdf(AbsDot(Normalize(ctx.n), wi));
+            case EnvironmentSampling::kStructured:
+                return structured_->Pdf(Normalize(to_map_.Vector(wi)));
+            case EnvironmentSampling::kDistribution:
+                break;
+        }
         return DirectionPdf(wi);
     }
     Rgb Le(const Vec3& d) const override {
@@ -81,6 +125,13 @@ class ImageEnvironmentLight final : public Light {
   private:
     float DiskPdf() const { return 1 / (kPi * scene_radius_ * scene_radius_); }
 
+    // Cosine sampling needs the receiver's normal; without one, uniform.
+    EnvironmentSampling Sampling(const LightSampleContext& ctx) const {
+        if (sampling_ == EnvironmentSampling::kCosine && LengthSquared(ctx.n) == 0)
+            return EnvironmentSampling::kUniform;
+        return sampling_;
+    }
+
     Rgb SampleDirection(Vec2 u, Vec3* wi, float* pdf) const {
         float pdf_uv = 0;
         const Vec2 uv = tables_->distribution.SampleContinuous(u, &pdf_uv);
@@ -102,8 +153,10 @@ class ImageEnvironmentLight final : public Light {
     }
 
     std::shared_ptr<const EnvironmentMapTables> tables_;
+    std::shared_ptr<const StructuredSampling> structured_;
     Rgb scale_;
     Transform to_world_, to_map_;
+    EnvironmentSampling sampling_;
     float scene_radius_ = 1;
     Vec3 scene_center_;
 };
@@ -164,10 +217,16 @@ std::shared_ptr<const EnvironmentMapTables> MakeEnvironmentMapTables(int width, 
     return t;
 }
 
-std::unique_ptr<Light> MakeImageEnvironmentLight(std::shared_ptr<const EnvironmentMapTables> tables,
-                                                 Rgb scale, const Transform& rotation) {
+std::unique_ptr<Light> MakeImageEnvironmentLight(
+    std::shared_ptr<const EnvironmentMapTables> tables, Rgb scale, const Transform& rotation,
+    EnvironmentSampling sampling, std::shared_ptr<const StructuredSampling> structured) {
     if (!tables) throw std::invalid_argument("an environment light needs its map");
-    return std::make_unique<ImageEnvironmentLight>(std::move(tables), scale, rotation);
+    if (sampling == EnvironmentSampling::kStructured &&
+        (!structured || structured->Width() != tables->width ||
+         structured->Height() != tables->height))
+        throw std::invalid_argument("structured sampling needs its tables, built from the map");
+    return std::make_unique<ImageEnvironmentLight>(std::move(tables), scale, rotation, sampling,
+                                                   std::move(structured));
 }
 
 }  // namespace tessera

@@ -43,8 +43,24 @@ struct EnvironmentMapTables {
 };
 std::shared_ptr<const EnvironmentMapTables> MakeEnvironmentMapTables(int width, int height,
                                                                      std::vector<Rgb> texels);
+// How an environment map's light is sampled toward a receiving point (SampleLi, PdfLi;
+// light paths always leave by the map's distribution):
+//   kUniform: directions uniform over the sphere;
+//   kCosine: cosine-distributed about the receiver's normal, on either side with
+//            probability 1/2 (uniform over the sphere where the receiver has none);
+//   kDistribution: the map's 2D distribution over luminance x sin theta (the default);
+//   kStructured: structured importance sampling (structured_sampling.h): a stratum by its
+//                energy, then a direction within it, with its exact density.
+enum class EnvironmentSampling { kUniform, kCosine, kDistribution, kStructured };
+inline constexpr const char* kEnvironmentSamplingNames[] = {"uniform", "cosine", "distribution",
+                                                            "structured"};
+class StructuredSampling;  // light/structured_sampling.h
+
 // Radiance from the map times `scale`, the map turned by `rotation` (map to world).
-std::unique_ptr<Light> MakeImageEnvironmentLight(std::shared_ptr<const EnvironmentMapTables> tables,
-                                                 Rgb scale, const Transform& rotation = {});
+// kStructured needs `structured`, built from the same map.
+std::unique_ptr<Light> MakeImageEnvironmentLight(
+    std::shared_ptr<const EnvironmentMapTables> tables, Rgb scale, const Transform& rotation = {},
+    EnvironmentSampling sampling = EnvironmentSampling::kDistribution,
+    std::shared_ptr<const StructuredSampling> structured = nullptr);
 
 }  // namespace tessera

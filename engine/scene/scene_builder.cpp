@@ -17,6 +17,7 @@
 #include "io/file_bytes.h"
 #include "io/image_io.h"
 #include "light/lights.h"
+#include "light/structured_sampling.h"
 #include "material/image_texture.h"
 #include "material/materials.h"
 #include "material/measured_brdf.h"
@@ -394,6 +395,23 @@ std::shared_ptr<const EnvironmentMapTables> LoadEnvironmentMap(const LightRecord
     }
 }
 
+// The strata of structured importance sampling for the map of `l`, made once per map and
+// number of strata.
+std::shared_ptr<const StructuredSampling> LoadStructuredSampling(const LightRecord& l,
+                                                                 const SceneRecords& records,
+                                                                 const EnvironmentMapTables& map) {
+    static FileTableCache<StructuredSampling> cache;
+    SisSettings settings;
+    settings.strata = l.strata;
+    return cache.Get(
+        ReadReferencedFile(l.path, records),
+        std::filesystem::path(l.path).extension().string() + " strata " + std::to_string(l.strata),
+        [&] {
+            return std::make_shared<const StructuredSampling>(
+                StructuredSampling::Build(map, settings));
+        });
+}
+
 std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& records) {
     switch (l.kind) {
         case LightKind::kPoint:
@@ -403,9 +421,14 @@ std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& recor
         case LightKind::kDirectional:
             return MakeDirectionalLight(l.direction, l.value);
         case LightKind::kEnvironment:
-            if (!l.path.empty())
-                return MakeImageEnvironmentLight(LoadEnvironmentMap(l, records), l.scale,
-                                                 l.rotation);
+            if (!l.path.empty()) {
+                std::shared_ptr<const EnvironmentMapTables> map = LoadEnvironmentMap(l, records);
+                std::shared_ptr<const StructuredSampling> structured;
+                if (l.sampling == EnvironmentSampling::kStructured)
+                    structured = LoadStructuredSampling(l, records, *map);
+                return MakeImageEnvironmentLight(std::move(map), l.scale, l.rotation, l.sampling,
+                                                 std::move(structured));
+            }
             return MakeConstantEnvironmentLight(l.value * l.scale);
     }
     throw std::logic_error("unknown light kind");

@@ -1156,6 +1156,18 @@ LightRecord ParseLight(const JsonValue& v, const Context& ctx) {
                 l.value = NonNegativeRgb(o.Required("radiance"));
             }
             if (auto s = o.Get("scale")) l.scale = NonNegativeRgb(*s);
+            if (auto s = o.Get("sampling")) {
+                if (!file) s->Fail("only an environment map has a sampling choice");
+                l.sampling = EnvironmentSampling(ParseEnum(
+                    *s,
+                    {std::begin(kEnvironmentSamplingNames), std::end(kEnvironmentSamplingNames)},
+                    "environment sampling"));
+            }
+            if (auto n = o.Get("strata")) {
+                if (l.sampling != EnvironmentSampling::kStructured)
+                    n->Fail("'strata' belongs to \"sampling\": \"structured\"");
+                l.strata = int(n->AsInt(1, 1 << 20));
+            }
             if (auto r = o.Get("rotate")) {
                 JsonObject ro = r->AsObject();
                 const Vec3 axis = NonZeroVec3(ro.Required("axis"));

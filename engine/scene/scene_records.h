@@ -15,6 +15,7 @@
 #include "core/color.h"
 #include "core/math.h"
 #include "core/transform.h"
+#include "light/lights.h"
 #include "material/microfacet.h"
 #include "plan/render_settings.h"
 #include "scene/mesh.h"
@@ -139,6 +140,8 @@ struct LightRecord {
     std::string path, path_where;
     Rgb scale = Rgb(1);
     Transform rotation;
+    EnvironmentSampling sampling = EnvironmentSampling::kDistribution;
+    int strata = 300;  // structured sampling: the number of strata
 };
 
 struct CameraRecord {
