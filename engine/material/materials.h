@@ -13,6 +13,7 @@
 namespace tessera {
 
 class MeasuredBrdfTable;  // material/measured_brdf.h
+class FactoredBrdf;       // material/factored_brdf.h
 
 using TextureRef = std::shared_ptr<const Texture>;
 
@@ -46,8 +47,10 @@ std::unique_ptr<Material> MakeRoughDielectricMaterial(float eta, float alpha,
 std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, float alpha,
                                               MicrofacetType type = MicrofacetType::kGgx);
 // A measured isotropic BRDF (a MERL table, or a resampled irregular measurement),
-// reflecting alike on both sides; directions sampled by the cosine.
-std::unique_ptr<Material> MakeMeasuredMaterial(std::shared_ptr<const MeasuredBrdfTable> table);
+// reflecting alike on both sides; directions sampled through `factored` (built from the same
+// table), or by the cosine when it is null.
+std::unique_ptr<Material> MakeMeasuredMaterial(std::shared_ptr<const MeasuredBrdfTable> table,
+                                               std::shared_ptr<const FactoredBrdf> factored);
 // A linear blend (1 - w) a + w b of two materials, w the channel average of `weight`
 // (values in [0, 1]) at the surface point. `a` and `b` are not owned: they must outlive
 // the blend (in a scene, both are the scene's materials too).

@@ -493,16 +493,18 @@ Rgb MeasuredBrdfTable::Eval(const Vec3& wo, const Vec3& wi) const {
 Rgb MeasuredBrdfTable::Albedo(const Vec3& wo, int samples) const {
     const int strata = std::max(1, static_cast<int>(std::sqrt(std::max(samples, 1))));
     Pcg32 rng(Hash(0x6d657273u, strata));  // fixed: the estimate is reproducible
-    Rgb sum;
+    double sum[3] = {0, 0, 0};             // in double: a float sum loses small terms past ~2^20
     for (int y = 0; y < strata; ++y) {
         for (int x = 0; x < strata; ++x) {
             Vec2 u((x + rng.NextFloat()) / strata, (y + rng.NextFloat()) / strata);
             u = Vec2(std::min(u.x, kOneMinusEpsilon), std::min(u.y, kOneMinusEpsilon));
             // f cos / pdf with pdf = cos / pi.
-            sum += Eval(wo, SampleCosineHemisphere(u)) * kPi;
+            const Rgb f = Eval(wo, SampleCosineHemisphere(u)) * kPi;
+            for (int c = 0; c < 3; ++c) sum[c] += f[c];
         }
     }
-    return sum / static_cast<float>(strata * strata);
+    const double n = double(strata) * strata;
+    return Rgb(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
 }
 
 float MeasuredBrdfTable::MaxValue() const {

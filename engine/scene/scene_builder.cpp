@@ -18,6 +18,7 @@
 #include "io/image_io.h"
 #include "light/lights.h"
 #include "light/structured_sampling.h"
+#include "material/factored_brdf.h"
 #include "material/image_texture.h"
 #include "material/materials.h"
 #include "material/measured_brdf.h"
@@ -339,8 +340,20 @@ std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
         case MaterialKind::kBlend:
             return MakeBlendMaterial(built[m.parts[0]].get(), built[m.parts[1]].get(),
                                      BlendWeight(m.weight, textures, records));
-        case MaterialKind::kMeasured:
-            return MakeMeasuredMaterial(LoadMeasuredBrdf(m, records));
+        case MaterialKind::kMeasured: {
+            std::shared_ptr<const MeasuredBrdfTable> table = LoadMeasuredBrdf(m, records);
+            std::shared_ptr<const FactoredBrdf> factored;
+            if (m.factored) {
+                // Made once per table (and shared while scenes hold it).
+                static FileTableCache<FactoredBrdf> cache;
+                factored = cache.Get(
+                    ReadReferencedFile(m.path, records),
+                    "factored " + std::filesystem::path(m.path).extension().string(), [&] {
+                        return std::make_shared<const FactoredBrdf>(FactoredBrdf::Build(*table));
+                    });
+            }
+            return MakeMeasuredMaterial(std::move(table), std::move(factored));
+        }
     }
     throw std::logic_error("unknown material kind");
 }

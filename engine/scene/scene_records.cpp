@@ -798,6 +798,8 @@ MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const 
                     "a measured BRDF is a MERL '.binary' file or an irregularly sampled "
                     "'.brdf' file, got '" +
                     ext + "'");
+            if (auto s = o.Get("sampling"))
+                m.factored = ParseEnum(*s, {"factored", "cosine"}, "measured BRDF sampling") == 0;
             break;
         }
     }

@@ -70,8 +70,10 @@ struct MaterialRecord {
     // SceneRecords::materials; no cycles) and w the weight (value.r or a texture).
     std::array<int, 2> parts = {-1, -1};
     ColorParam weight;
-    // measured: the BRDF file (resolved) and where it was named.
+    // measured: the BRDF file (resolved) and where it was named; importance sampling
+    // through its factored representation (else by the cosine).
     std::string path, path_where;
+    bool factored = true;
 };
 
 struct EmissionRecord {
