@@ -77,4 +77,15 @@ class Reader {
     uint64_t offset_ = 0;
 };
 
+// FNV-1a of the bytes: a checksum that every single-byte change of a blob changes, and a
+// cheap key for caches of tables made from a file's bytes.
+inline uint64_t Fnv1a(std::string_view bytes) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (char c : bytes) {
+        h ^= static_cast<unsigned char>(c);
+        h *= 0x100000001b3ull;
+    }
+    return h;
+}
+
 }  // namespace tessera::wire

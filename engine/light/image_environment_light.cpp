@@ -31,8 +31,6 @@
 namespace tessera {
 namespace {
 
-float Luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
-
 class ImageEnvironmentLight final : public Light {
   public:
     ImageEnvironmentLight(std::shared_ptr<const EnvironmentMapTables> tables, Rgb scale,
@@ -206,7 +204,7 @@ std::shared_ptr<const EnvironmentMapTables> MakeEnvironmentMapTables(int width, 
             // Negative or non-finite texels (bad pixels in a capture) emit nothing.
             for (float* ch : {&c.r, &c.g, &c.b})
                 if (!std::isfinite(*ch) || *ch < 0) *ch = 0;
-            func[static_cast<size_t>(y) * width + x] = Luminance(c) * sin_theta;
+            func[static_cast<size_t>(y) * width + x] = c.Luminance() * sin_theta;
             integral[0] += c.r * solid_angle;
             integral[1] += c.g * solid_angle;
             integral[2] += c.b * solid_angle;

@@ -59,15 +59,7 @@ constexpr uint32_t kVersion = 1;
 constexpr int64_t kMaxTexels = int64_t(1) << 27;
 const char* const kWhat = "structured sampling table";
 
-// FNV-1a: every single-byte change of a blob changes it.
-uint64_t Checksum(std::string_view bytes) {
-    uint64_t h = 0xcbf29ce484222325ull;
-    for (char c : bytes) {
-        h ^= static_cast<unsigned char>(c);
-        h *= 0x100000001b3ull;
-    }
-    return h;
-}
+uint64_t Checksum(std::string_view bytes) { return wire::Fnv1a(bytes); }
 
 // Unit directions of texel centres, by the map's mapping (computed in double, stored in
 // float). Nearness is the squared chord |a - b|^2, which grows with the angle and, unlike

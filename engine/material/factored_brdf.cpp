@@ -34,15 +34,7 @@ constexpr double kPmfSumTolerance = 1e-3;
 // decoded sums finite.
 constexpr float kMaxWeight = 1e30f;
 
-// FNV-1a: every single-byte change of a blob changes it.
-uint64_t Checksum(std::string_view bytes) {
-    uint64_t h = 0xcbf29ce484222325ull;
-    for (char c : bytes) {
-        h ^= static_cast<unsigned char>(c);
-        h *= 0x100000001b3ull;
-    }
-    return h;
-}
+uint64_t Checksum(std::string_view bytes) { return wire::Fnv1a(bytes); }
 
 bool InRange(int v, int lo, int hi) { return v >= lo && v <= hi; }
 

@@ -14,6 +14,7 @@
 #include "camera/perspective.h"
 #include "core/animation.h"
 #include "core/error.h"
+#include "core/wire_format.h"
 #include "io/file_bytes.h"
 #include "io/image_io.h"
 #include "light/lights.h"
@@ -271,10 +272,7 @@ class FileTableCache {
   public:
     std::shared_ptr<const T> Get(std::string_view bytes, const std::string& how,
                                  const std::function<std::shared_ptr<const T>()>& make) {
-        // FNV-1a over the bytes.
-        uint64_t h = 0xcbf29ce484222325ull;
-        for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
-        const Key key{h, bytes.size(), how};
+        const Key key{wire::Fnv1a(bytes), bytes.size(), how};
         {
             std::lock_guard<std::mutex> lock(mutex_);
             auto it = entries_.find(key);
