@@ -88,4 +88,18 @@ inline uint64_t Fnv1a(std::string_view bytes) {
     return h;
 }
 
+// Blobs sealed with a checksum: AppendChecksum adds the FNV-1a of everything written so far;
+// ChecksummedPayload gives back what it covers, and throws std::runtime_error (naming the blob
+// as `what`) for a blob too short to hold one or whose bytes do not match it.
+inline void AppendChecksum(std::string* out) { Writer(out).U64(Fnv1a(*out)); }
+inline std::string_view ChecksummedPayload(std::string_view bytes, const char* what) {
+    constexpr size_t kChecksumBytes = 8;
+    Reader check(bytes, what);
+    if (bytes.size() < kChecksumBytes) check.Fail("truncated");
+    const std::string_view payload = bytes.substr(0, bytes.size() - kChecksumBytes);
+    Reader tail(bytes.substr(payload.size()), what);
+    if (tail.U64() != Fnv1a(payload)) check.Fail("checksum mismatch (truncated or corrupted)");
+    return payload;
+}
+
 }  // namespace tessera::wire

@@ -59,8 +59,6 @@ constexpr uint32_t kVersion = 1;
 constexpr int64_t kMaxTexels = int64_t(1) << 27;
 const char* const kWhat = "structured sampling table";
 
-uint64_t Checksum(std::string_view bytes) { return wire::Fnv1a(bytes); }
-
 // Unit directions of texel centres, by the map's mapping (computed in double, stored in
 // float). Nearness is the squared chord |a - b|^2, which grows with the angle and, unlike
 // 1 - cos, keeps its precision in float between neighbouring texels of a large map.
@@ -551,17 +549,12 @@ std::string StructuredSampling::Encode() const {
     }
     for (size_t t = 0; t < stratum_of_.size(); ++t)
         if (stratum_of_[t] >= 0) w.F32(luminance_[t]);
-    w.U64(Checksum(out));
+    wire::AppendChecksum(&out);
     return out;
 }
 
 StructuredSampling StructuredSampling::Decode(const std::string& bytes) {
-    constexpr size_t kChecksumBytes = 8;
-    wire::Reader check(bytes, kWhat);
-    if (bytes.size() < kChecksumBytes) check.Fail("truncated");
-    const std::string_view payload(bytes.data(), bytes.size() - kChecksumBytes);
-    wire::Reader tail(std::string_view(bytes).substr(payload.size()), kWhat);
-    if (tail.U64() != Checksum(payload)) check.Fail("checksum mismatch (truncated or corrupted)");
+    const std::string_view payload = wire::ChecksummedPayload(bytes, kWhat);
 
     wire::Reader r(payload, kWhat);
     if (r.Bytes(kMagic.size()) != kMagic) r.Fail("not a structured sampling table");

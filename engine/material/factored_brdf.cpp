@@ -34,8 +34,6 @@ constexpr double kPmfSumTolerance = 1e-3;
 // decoded sums finite.
 constexpr float kMaxWeight = 1e30f;
 
-uint64_t Checksum(std::string_view bytes) { return wire::Fnv1a(bytes); }
-
 bool InRange(int v, int lo, int hi) { return v >= lo && v <= hi; }
 
 // Empty when the settings are usable, else what is wrong with them.
@@ -437,17 +435,12 @@ std::string FactoredBrdf::Encode() const {
         for (float x : t.theta_pmf) w.F32(x);
         for (float x : t.phi_pmf) w.F32(x);
     }
-    w.U64(Checksum(out));
+    wire::AppendChecksum(&out);
     return out;
 }
 
 FactoredBrdf FactoredBrdf::Decode(const std::string& bytes) {
-    constexpr size_t kChecksumBytes = 8;
-    wire::Reader check(bytes, kWhat);
-    if (bytes.size() < kChecksumBytes) check.Fail("truncated");
-    const std::string_view payload(bytes.data(), bytes.size() - kChecksumBytes);
-    wire::Reader tail(std::string_view(bytes).substr(payload.size()), kWhat);
-    if (tail.U64() != Checksum(payload)) check.Fail("checksum mismatch (truncated or corrupted)");
+    const std::string_view payload = wire::ChecksummedPayload(bytes, kWhat);
 
     wire::Reader r(payload, kWhat);
     if (r.Bytes(kMagic.size()) != kMagic) r.Fail("not a factored BRDF");
