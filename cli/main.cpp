@@ -10,6 +10,7 @@
 #include "job_options.h"
 #include "render_command.h"
 #include "security_commands.h"
+#include "strata_command.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"Tessera: a tile-based Monte Carlo renderer and render farm"};
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
     tessera::AddFarmCommand(app);
     tessera::AddCertCommand(app);
     tessera::AddTokenCommand(app);
+    tessera::AddStrataCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -573,5 +573,94 @@ TEST_F(CliTest, MalformedFrameListsAreRefused) {
     EXPECT_FALSE(fs::exists(dir_ / "x.0002.exr"));
 }
 
+// --- tessera strata ----------------------------------------------------------------------
+
+// A 64x32 latitude-longitude map: a dim blue sky and a bright, warm 4x3 sun (no texel pure
+// red or green, so that only the marks are).
+std::string WriteSunAndSkyMap(const fs::path& dir) {
+    Image map;
+    map.width = 64;
+    map.height = 32;
+    map.channels = {"R", "G", "B"};
+    map.pixels.resize(size_t(map.width) * map.height * 3);
+    for (int y = 0; y < map.height; ++y)
+        for (int x = 0; x < map.width; ++x) {
+            const bool sun = x >= 40 && x < 44 && y >= 6 && y < 9;
+            const float rgb[3] = {sun ? 50.0f : 0.2f, sun ? 45.0f : 0.3f, sun ? 30.0f : 0.6f};
+            for (int c = 0; c < 3; ++c) map.At(x, y, c) = rgb[c];
+        }
+    const std::string path = (dir / "map.exr").string();
+    WriteExr(path, map, {});
+    return path;
+}
+
+TEST_F(CliTest, StrataDrawsBoundariesAndSamplesOverTheMap) {
+    const std::string map = WriteSunAndSkyMap(dir_);
+    const fs::path out = dir_ / "out.png";
+    ASSERT_EQ(0, Run("strata " + map + " --strata 20 -o " + out.string())) << err_;
+    EXPECT_EQ(Head(out, 8), kPngMagic);
+    const Image image = ReadImage(out.string());
+    ASSERT_EQ(image.width, 64);
+    ASSERT_EQ(image.height, 32);
+    const int r = image.ChannelIndex("R"), g = image.ChannelIndex("G"), b = image.ChannelIndex("B");
+    ASSERT_GE(r, 0);
+    ASSERT_GE(g, 0);
+    ASSERT_GE(b, 0);
+    int red = 0, green = 0;
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) {
+            const float pr = image.At(x, y, r), pg = image.At(x, y, g), pb = image.At(x, y, b);
+            red += pr == 1 && pg == 0 && pb == 0;
+            green += pr == 0 && pg == 1 && pb == 0;
+        }
+    EXPECT_GT(red, 0);
+    EXPECT_GE(green, 1);
+    EXPECT_LE(green, 20);
+    // The summary: the map's size and the strata built, on stdout.
+    EXPECT_NE(out_.find("64x32"), std::string::npos) << out_;
+    EXPECT_NE(out_.find("sigma"), std::string::npos) << out_;
+    EXPECT_NE(out_.find("total  " + std::to_string(green) + " strata"), std::string::npos) << out_;
+}
+
+TEST_F(CliTest, StrataWritesAFloatExr) {
+    const std::string map = WriteSunAndSkyMap(dir_);
+    const fs::path out = dir_ / "out.exr";
+    ASSERT_EQ(0, Run("strata " + map + " --strata 20 --exposure 0.5 -o " + out.string())) << err_;
+    EXPECT_EQ(Head(out, 4), kExrMagic);
+    const Image image = ReadImage(out.string());
+    EXPECT_EQ(image.width, 64);
+    EXPECT_EQ(image.height, 32);
+    for (float v : image.pixels) {
+        EXPECT_GE(v, 0);
+        EXPECT_LE(v, 1);
+    }
+}
+
+TEST_F(CliTest, StrataOfAMissingMapNamesItAndWritesNothing) {
+    const fs::path map = dir_ / "nowhere.exr", out = dir_ / "out.png";
+    const int status = Run("strata " + map.string() + " -o " + out.string());
+    // Exit status 2, the map named, and no file written.
+    ExpectRefused(status, err_, map.string(), dir_);
+    EXPECT_NE(err_.find("does not exist"), std::string::npos) << err_;
+    EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(CliTest, StrataRefusesBadOptionsBeforeReadingTheMap) {
+    const std::string map = WriteSunAndSkyMap(dir_);
+    const std::string out = (dir_ / "out.png").string();
+    int status = Run("strata " + map + " --strata 0 -o " + out);
+    EXPECT_EQ(status, 2) << err_;
+    EXPECT_NE(err_.find("--strata 0"), std::string::npos) << err_;
+    status = Run("strata " + map + " -o " + (dir_ / "out.jpg").string());
+    EXPECT_EQ(status, 2) << err_;
+    EXPECT_NE(err_.find("unknown image extension"), std::string::npos) << err_;
+    status = Run("strata " + map + " -o " + (dir_ / "missing" / "out.png").string());
+    EXPECT_EQ(status, 2) << err_;
+    EXPECT_NE(err_.find("does not exist"), std::string::npos) << err_;
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_FALSE(fs::exists(dir_ / "out.jpg"));
+    EXPECT_FALSE(fs::exists(dir_ / "missing"));
+}
+
 }  // namespace
 }  // namespace tessera
