@@ -14,6 +14,8 @@
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
+#include "scene/table_cache.h"
+#include "sha256.h"
 
 namespace tessera {
 
@@ -63,7 +65,7 @@ void PlannedJob::Adopt(const std::string& jobs_dir, const std::string& job_id) {
     staging_.clear();
 }
 
-JobPlanner::JobPlanner(const BlobStore& blobs, std::string jobs_dir, PlannerLimits limits)
+JobPlanner::JobPlanner(BlobStore& blobs, std::string jobs_dir, PlannerLimits limits)
     : blobs_(blobs), jobs_dir_(std::move(jobs_dir)), limits_(limits) {
     fs::create_directories(jobs_dir_);
     for (const fs::directory_entry& e : fs::directory_iterator(jobs_dir_)) {
@@ -244,6 +246,18 @@ PlannedJob JobPlanner::Plan(const v1::JobSpec& spec_in) const {
         Invalid(e.what());
     } catch (const std::invalid_argument& e) {
         Invalid(e.what());
+    }
+    // The tables the scene's loading made, for the workers: made once per job.
+    spec.clear_tables();
+    for (const SceneTable& t : loaded.scene->Tables()) {
+        const std::string bytes = t.encode();
+        const std::string hash = Sha256Hex(bytes);
+        blobs_.Put(hash, bytes);
+        v1::PrecomputedTable* shipped = spec.add_tables();
+        shipped->set_kind(t.kind);
+        shipped->set_key(t.key);
+        shipped->set_hash(hash);
+        shipped->set_size(bytes.size());
     }
     const RenderSettings& s = loaded.settings;
     const Vec2i res = loaded.scene->GetCamera().Resolution();

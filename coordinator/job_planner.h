@@ -56,12 +56,14 @@ class PlannedJob {
 class JobPlanner {
   public:
     // `jobs_dir` holds the jobs' bundles; stale staging folders in it are removed.
-    JobPlanner(const BlobStore& blobs, std::string jobs_dir, PlannerLimits limits);
+    JobPlanner(BlobStore& blobs, std::string jobs_dir, PlannerLimits limits);
 
     // Throws CoordinatorError: INVALID_ARGUMENT (malformed spec, a number out of range,
     // unsafe path, scene that does not load, with the loader's message; the scene is
     // loaded sandboxed in its bundle, SceneLoadOptions), NOT_FOUND (a blob never uploaded,
-    // naming its path and hash), RESOURCE_EXHAUSTED (over a limit).
+    // naming its path and hash), RESOURCE_EXHAUSTED (over a limit). The tables the scene's
+    // loading made (engine/scene/table_cache.h) are stored as blobs and listed in the
+    // planned spec's `tables`, replacing any the submitted spec listed.
     PlannedJob Plan(const v1::JobSpec& spec) const;
 
     // RESOURCE_EXHAUSTED if `job`'s tasks on top of the `queued` unfinished tasks of the
@@ -76,7 +78,7 @@ class JobPlanner {
     void CheckFrameList(const v1::JobSpec& spec) const;
     void CheckSettings(int width, int height, int spp, int64_t tasks) const;
 
-    const BlobStore& blobs_;
+    BlobStore& blobs_;
     std::string jobs_dir_;
     PlannerLimits limits_;
 };

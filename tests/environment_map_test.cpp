@@ -294,6 +294,45 @@ TEST_F(EnvironmentMapRender, UniformMapGivesAlbedoTimesRadiance) {
     }
 }
 
+// The light set stands in for the map: a diffuse sphere under a uniform map, lit by the
+// map's 300 strata as directional lights, renders albedo x L in every integrator (within
+// the light set's quadrature error, under 1% here), so the map itself adds nothing more
+// (a double count would give twice that); the camera still sees the map as background.
+TEST_F(EnvironmentMapRender, LightSetReplacesTheMapsLight) {
+    WriteMap(dir_ / "uniform.exr", 32, 16, [](float, float) { return Rgb(0.5f); });
+    const std::string light =
+        R"({"type": "environment", "file": "uniform.exr", "scale": 2, "sampling": "lightset"})";
+    LoadedScene loaded = Load(light, 0.6f, 20);
+    for (const char* integrator : {"path", "direct", "bdpt", "light"}) {
+        SCOPED_TRACE(integrator);
+        const bool light_tracer = std::string(integrator) == "light";
+        RenderSettings s = test::Settings(integrator, light_tracer ? 256 : 16, TestSeed(23));
+        s.max_depth = 4;
+        std::vector<double> means;
+        for (const Image& image : test::RenderSeeds(*loaded.scene, s)) {
+            double sum = 0;
+            for (int y = 0; y < image.height; ++y)
+                for (int x = 0; x < image.width; ++x)
+                    for (int c = 0; c < 3; ++c) sum += image.At(x, y, c);
+            means.push_back(sum / (3.0 * image.width * image.height));
+        }
+        const test::Estimate e = test::MeanOf(means);
+        EXPECT_NEAR(e.mean, 0.6, 0.006 + 4.5 * e.se);
+        EXPECT_LT(4 * e.se, 0.05 * 0.6) << "too noisy";
+    }
+    // Wide enough that the corners miss the sphere: they see the map, radiance 1.
+    LoadedScene wide = Load(light, 0.6f, 60);
+    for (const char* integrator : {"path", "bdpt"}) {
+        SCOPED_TRACE(integrator);
+        const Image image =
+            RenderFrameLocal(*wide.scene, test::Settings(integrator, 4, TestSeed(24)), 2);
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(image.At(0, 0, c), 1.0, 1e-3);
+            EXPECT_NEAR(image.At(15, 15, c), 1.0, 1e-3);
+        }
+    }
+}
+
 // Under a sky of radiance 1 above the horizon and 0 below, a diffuse sphere's radiance at
 // normal n is albedo (1 + n . up) / 2, where up is the sky's zenith: +y upright, -x with the
 // map turned by 90 degrees about +z (and upright again with structured and with cosine
@@ -312,6 +351,8 @@ TEST_F(EnvironmentMapRender, HalfSkyAndItsRotation) {
              R"({"type": "environment", "file": "sky.exr", "sampling": "structured", "strata": 40})",
              Vec3(0, 1, 0)},
          Case{R"({"type": "environment", "file": "sky.exr", "sampling": "cosine"})", Vec3(0, 1, 0)},
+         Case{R"({"type": "environment", "file": "sky.exr", "sampling": "lightset"})",
+              Vec3(0, 1, 0)},
          Case{
              R"({"type": "environment", "file": "sky.exr", "rotate": {"axis": [0, 0, 1], "angle": 90}})",
              Vec3(-1, 0, 0)}}) {

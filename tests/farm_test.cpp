@@ -11,11 +11,14 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
+#include <fstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "farm_harness.h"
+#include "io/image_io.h"
+#include "material/measured_brdf.h"
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
@@ -122,6 +125,59 @@ TEST_F(FarmTest, OneWorkerMatchesTheLocalRender) {
     ASSERT_EQ(fetch.code, 0) << fetch.err;
     EXPECT_TRUE(fs::exists(out / "cornell-box.0000.png"));
     ExpectSameImage(RenderLocal(kSmall), out / "cornell-box.0000.exr");
+}
+
+// An environment map's strata and a measured BRDF's factorisation are made once per job,
+// by the coordinator while it plans it: the worker installs them from the coordinator's
+// blobs and makes none of its own, and the image is the local render's, bit for bit.
+TEST_F(FarmTest, PrecomputedTablesAreShippedToWorkers) {
+    const fs::path scene_dir = dir_ / "tables-scene";
+    fs::create_directories(scene_dir);
+    Image map;
+    map.width = 64;
+    map.height = 32;
+    map.channels = {"R", "G", "B"};
+    map.pixels.resize(size_t(64) * 32 * 3);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 64; ++x)
+            for (int c = 0; c < 3; ++c)
+                map.At(x, y, c) = (x / 4 == 3 && y / 4 == 2) ? 80.0f : (y < 16 ? 0.6f : 0.1f);
+    WriteExr((scene_dir / "sky.exr").string(), map, {});
+    WriteMerlBinary((scene_dir / "gloss.binary").string(),
+                    TabulateBrdf([](const Vec3& wo, const Vec3& wi) {
+                        const Vec3 h = Normalize(wo + wi);
+                        const float a2 = 0.04f, c2 = h.z * h.z;
+                        const float d = a2 / (kPi * Sqr(c2 * (a2 - 1) + 1));
+                        return Rgb(0.05f) + Rgb(0.9f, 0.8f, 0.6f) * (d / (4 * wo.z * wi.z));
+                    }));
+    const std::string scene = (scene_dir / "scene.json").string();
+    std::ofstream(scene) << R"({
+  "render": {"width": 32, "height": 24, "spp": 4, "tile_size": 16},
+  "camera": {"type": "perspective", "eye": [0, 0.5, 4], "target": [0, 0, 0], "fov": 30},
+  "materials": {"m": {"type": "measured", "file": "gloss.binary"},
+                "floor": {"type": "diffuse", "reflectance": 0.5}},
+  "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1},
+             {"type": "quad", "material": "floor",
+              "vertices": [[-4, -1, -4], [-4, -1, 4], [4, -1, 4], [4, -1, -4]]}],
+  "lights": [{"type": "environment", "file": "sky.exr", "sampling": "structured", "strata": 24}]
+})";
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    StartWorker(port, "only", 2);
+    const std::string address = "127.0.0.1:" + std::to_string(port);
+    CliResult submit =
+        Cli({"submit", scene, "--coordinator", address, "--name", "tables", "--watch"});
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    const std::string job_id = Trim(submit.out);
+    const fs::path out = dir_ / "frames";
+    CliResult fetch = Cli({"fetch", job_id, "-o", out.string(), "--coordinator", address});
+    ASSERT_EQ(fetch.code, 0) << fetch.err;
+    const fs::path local = dir_ / "tables-local.exr";
+    CliResult render = Cli({"render", scene, "-q", "-o", local.string()});
+    ASSERT_EQ(render.code, 0) << render.err;
+    ExpectSameImage(local, out / "tables.0000.exr");
+    const std::string log = ReadFile(dir_ / "only.log");
+    EXPECT_NE(log.find("2 precomputed tables, 0 tables made here"), std::string::npos) << log;
 }
 
 // Light tracing on the farm: its render stage is made of splat tasks (here 16 bands of

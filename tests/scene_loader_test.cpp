@@ -439,14 +439,18 @@ TEST(SceneFormat, ListSceneFilesInOrderOfAppearance) {
   "shapes": [{"type": "mesh", "file": "m.obj", "material": "d"},
              {"type": "mesh", "file": "./m.obj", "material": "d"},
              {"type": "mesh", "file": "meshes/n.obj", "material": "d"}],
-  "materials": {"d": {"type": "diffuse", "reflectance": "t"}},
+  "materials": {"d": {"type": "diffuse", "reflectance": "t"},
+                "g": {"type": "measured", "file": "brdfs/g.binary"}},
   "objects": {"o": {"shapes": [{"type": "mesh", "file": "meshes/../m.obj", "material": "d"}]}},
   "textures": {"t": {"type": "image", "file": "t.ppm"}},
   "lights": [{"type": "environment", "file": "sky/map.hdr", "scale": 2}]
 })");
     dir.Write("sky/map.hdr", "");
-    // The environment map travels with the scene too (a farm's workers need it).
-    std::vector<std::string> expected = {"m.obj", "meshes/n.obj", "sky/map.hdr", "t.ppm"};
+    dir.Write("brdfs/g.binary", "");
+    // Environment maps and measured BRDFs travel with the scene too (a farm's workers need
+    // them). In the order of the file's sections, each file once.
+    std::vector<std::string> expected = {"m.obj", "meshes/n.obj", "brdfs/g.binary", "t.ppm",
+                                         "sky/map.hdr"};
     EXPECT_EQ(ListSceneFiles(path), expected);
     EXPECT_TRUE(ListSceneFiles(ExampleScene("cornell-box")).empty());
     std::vector<std::string> plates = {"plate1.obj", "plate2.obj", "plate3.obj", "plate4.obj"};

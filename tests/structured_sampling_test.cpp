@@ -449,6 +449,56 @@ TEST_F(StructuredSamplingTest, LightSetApproximatesIrradiance) {
     if (Verbose()) std::printf("    worst irradiance error %.4f of the total\n", worst);
 }
 
+// The light set's directional lights: one per stratum, in Order(), each from its stratum's
+// direction turned by the light's rotation with the stratum's energy times the scale as
+// irradiance; together they carry the map's integral.
+TEST_F(StructuredSamplingTest, LightSetLightsCarryTheStrata) {
+    const Transform rotation = Transform::Rotate(35, Vec3(1, 2, 0));
+    const Rgb scale(2, 3, 4);
+    const std::vector<std::unique_ptr<Light>> lights =
+        MakeEnvironmentLightSet(*sis_, scale, rotation);
+    ASSERT_EQ(static_cast<int>(lights.size()), sis_->NumStrata());
+    std::vector<int> seen(sis_->NumStrata(), 0);
+    double total[3] = {0, 0, 0};
+    for (size_t i = 0; i < lights.size(); ++i) {
+        const int s = sis_->Order()[i];
+        ASSERT_GE(s, 0);
+        ASSERT_LT(s, sis_->NumStrata());
+        ++seen[s];
+        const SisStratum& st = sis_->Strata()[s];
+        EXPECT_EQ(lights[i]->Type(), LightType::kDeltaDirection);
+        const auto ls = lights[i]->SampleLi(LightSampleContext{Vec3(0.1f, 0.2f, 0.3f), {}}, {});
+        ASSERT_TRUE(ls);
+        const Vec3 expected = Normalize(rotation.Vector(st.direction));
+        EXPECT_GT(Dot(ls->wi, expected), 1 - 1e-5f) << "light " << i;
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(ls->L[c], st.energy[c] * scale[c], 1e-5f * st.energy[c] * scale[c]);
+            total[c] += ls->L[c];
+        }
+    }
+    for (int s = 0; s < sis_->NumStrata(); ++s) EXPECT_EQ(seen[s], 1) << "stratum " << s;
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(total[c], map_->integral[c] * scale[c], 1e-4 * map_->integral[c] * scale[c]);
+}
+
+// Order() runs along a curve over the sphere: consecutive strata in it are much closer than
+// consecutive strata in Build's numbering (which goes layer by layer, region by region).
+TEST_F(StructuredSamplingTest, OrderIsSpatiallyCoherent) {
+    const auto mean_step = [&](const std::vector<int>& order) {
+        double sum = 0;
+        for (size_t i = 1; i < order.size(); ++i)
+            sum +=
+                Length(sis_->Strata()[order[i]].direction - sis_->Strata()[order[i - 1]].direction);
+        return sum / double(order.size() - 1);
+    };
+    std::vector<int> numbering(sis_->NumStrata());
+    for (int s = 0; s < sis_->NumStrata(); ++s) numbering[s] = s;
+    const double ordered = mean_step(sis_->Order()), built = mean_step(numbering);
+    if (Verbose())
+        std::printf("    mean step %.4f along Order(), %.4f by number\n", ordered, built);
+    EXPECT_LT(ordered, 0.5 * built);
+}
+
 // Encode and Decode give a table that samples identically; damaged bytes throw.
 TEST_F(StructuredSamplingTest, EncodeDecodeRoundTrip) {
     const std::string bytes = sis_->Encode();

@@ -4,11 +4,14 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <utility>
 
 #include "convert.h"
 #include "scene/scene_loader.h"
+#include "scene/table_cache.h"
 #include "sha256.h"
 
 namespace tessera {
@@ -32,6 +35,9 @@ struct SceneCache::FrameEntry {
 };
 
 struct SceneCache::Job {
+    // The tables the coordinator made for the job (table_cache.h), kept installed while
+    // the job is loaded, so that its animated frames' scenes find them too.
+    std::shared_ptr<const void> tables;
     LoadedScene loaded;
     mutable std::mutex mutex;
     // Frames, most recently used first. Their renderers refer to `loaded.scene` and are
@@ -276,6 +282,8 @@ std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
         throw std::runtime_error(fmt::format("fetching the scene bundle failed: {}", e.what()));
     }
     auto job = std::make_shared<Job>();
+    job->tables = InstallJobTables(job_id, spec);
+    const uint64_t made_before = StrataTables().Made() + FactoredTables().Made();
     try {
         // The bundle is untrusted input: every file the scene names must be a regular
         // file inside it.
@@ -288,9 +296,38 @@ std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
     }
     double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    spdlog::info("job {}: loaded scene '{}' ({} files) in {:.0f} ms", job_id, spec.scene_path(),
-                 spec.files_size(), ms);
+    const uint64_t made = StrataTables().Made() + FactoredTables().Made() - made_before;
+    spdlog::info(
+        "job {}: loaded scene '{}' ({} files, {} precomputed tables, {} tables made here) "
+        "in {:.0f} ms",
+        job_id, spec.scene_path(), spec.files_size(), job->tables ? spec.tables_size() : 0, made,
+        ms);
     return job;
+}
+
+std::shared_ptr<const void> SceneCache::InstallJobTables(const std::string& job_id,
+                                                         const v1::JobSpec& spec) const {
+    if (spec.tables_size() == 0) return nullptr;
+    // A table that cannot be had is no reason to fail: the scene makes its own (the same
+    // bits, only slower).
+    try {
+        std::vector<EncodedTable> tables;
+        for (const v1::PrecomputedTable& t : spec.tables()) {
+            const fs::path path = blobs_.Ensure(t.hash(), t.size());
+            std::ifstream in(path, std::ios::binary);
+            std::string bytes((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
+            if (!in.good() && !in.eof()) throw std::runtime_error("cannot read blob " + t.hash());
+            tables.push_back(EncodedTable{t.kind(), t.key(), std::move(bytes)});
+        }
+        return InstallTables(tables);
+    } catch (const std::exception& e) {
+        spdlog::warn(
+            "job {}: the coordinator's precomputed tables are not used ({}); the scene "
+            "makes its own",
+            job_id, e.what());
+        return nullptr;
+    }
 }
 
 void SceneCache::EvictLocked() {

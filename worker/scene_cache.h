@@ -72,6 +72,10 @@ class SceneCache {
     struct FrameEntry;
     static FrameEntry& FrameLocked(Job& job, int frame, size_t max_frames);
     std::shared_ptr<Job> LoadJob(const std::string& job_id, const v1::JobSpec& spec) const;
+    // Fetches and installs the spec's precomputed tables; null (with a warning) where
+    // that fails, and where the spec lists none.
+    std::shared_ptr<const void> InstallJobTables(const std::string& job_id,
+                                                 const v1::JobSpec& spec) const;
     void EvictLocked();
 
     std::filesystem::path jobs_dir_;

@@ -137,10 +137,11 @@ float BdptIntegrator::Pdf(const BdptVertex& cur, const BdptEdge* to_prev, const 
     return ConvertDensity(pdf, to_next, next);
 }
 
-Rgb BdptIntegrator::Emitted(const BdptVertex& v, const BdptEdge& to) const {
+Rgb BdptIntegrator::Emitted(const BdptVertex& v, const BdptEdge& to, bool background) const {
     if (v.infinite && !v.light) {
         Rgb L;
-        for (const Light* light : scene_.InfiniteLights()) L += light->Le(-v.w);
+        for (const Light* light : scene_.InfiniteLights())
+            if (background || !light->IsBackground()) L += light->Le(-v.w);
         return L;
     }
     if (v.type != BdptVertexType::kSurface || !v.light) return {};
@@ -354,7 +355,7 @@ Rgb BdptIntegrator::Connect(const BdptVertex* light, int s, const BdptVertex* ca
     if (s == 0) {
         const BdptVertex& pt = camera[t - 1];
         if (!pt.IsLight()) return {};
-        L = pt.beta * Emitted(pt, pt.pred);
+        L = pt.beta * Emitted(pt, pt.pred, t == 2 || camera[t - 2].delta);
     } else if (t == 1) {
         const BdptVertex& qs = light[s - 1];
         if (qs.type != BdptVertexType::kSurface || !qs.IsConnectible()) return {};

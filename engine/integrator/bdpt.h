@@ -145,7 +145,9 @@ class BdptIntegrator final : public Integrator {
     float PdfLight(const BdptVertex& light, const BdptEdge& to_next, const BdptVertex& to) const;
     float PdfLightOrigin(const BdptVertex& light, const BdptVertex& to) const;
     // Radiance a light vertex (or emitting surface vertex) sends along `to`.
-    Rgb Emitted(const BdptVertex& v, const BdptEdge& to) const;
+    // `background`: whether backgrounds (Light::IsBackground) count, which they do where
+    // the camera or a specular scattering sent the ray.
+    Rgb Emitted(const BdptVertex& v, const BdptEdge& to, bool background = true) const;
     // f (with the adjoint shading-normal correction for importance) of a surface vertex
     // scattering along `to_next`, times the cosine there.
     Rgb F(const BdptVertex& v, const BdptEdge& to_next, TransportMode mode) const;

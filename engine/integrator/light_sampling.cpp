@@ -28,6 +28,9 @@ Rgb SampleLight(const Scene& scene, const SurfaceInteraction& si, const Bsdf& bs
 Rgb EnvironmentEmission(const Scene& scene, const Ray& ray, const EmissionContext& ctx) {
     Rgb L;
     for (const Light* light : scene.InfiniteLights()) {
+        // A background's light reached this vertex through its light set, unless the path
+        // so far is specular (or the ray is the camera's).
+        if (light->IsBackground() && !ctx.unweighted) continue;
         Rgb Le = light->Le(ray.d);
         if (Le.IsBlack()) continue;
         if (ctx.unweighted) {

@@ -44,6 +44,7 @@ class ImageEnvironmentLight final : public Light {
           sampling_(sampling) {}
 
     LightType Type() const override { return LightType::kInfinite; }
+    bool IsBackground() const override { return sampling_ == EnvironmentSampling::kLightSet; }
     Rgb Phi() const override {
         return tables_->integral * scale_ * (kPi * scene_radius_ * scene_radius_);
     }
@@ -75,6 +76,7 @@ class ImageEnvironmentLight final : public Light {
                 break;
             }
             case EnvironmentSampling::kDistribution:
+            case EnvironmentSampling::kLightSet:  // not sampled as a background; as a map
                 L = SampleDirection(u, &wi, &pdf);
                 break;
             case EnvironmentSampling::kStructured:
@@ -95,6 +97,7 @@ class ImageEnvironmentLight final : public Light {
             case EnvironmentSampling::kStructured:
                 return structured_->Pdf(Normalize(to_map_.Vector(wi)));
             case EnvironmentSampling::kDistribution:
+            case EnvironmentSampling::kLightSet:
                 break;
         }
         return DirectionPdf(wi);
@@ -160,6 +163,18 @@ class ImageEnvironmentLight final : public Light {
 };
 
 }  // namespace
+
+std::vector<std::unique_ptr<Light>> MakeEnvironmentLightSet(const StructuredSampling& strata,
+                                                            Rgb scale, const Transform& rotation) {
+    std::vector<std::unique_ptr<Light>> lights;
+    for (int s : strata.Order()) {
+        const SisStratum& st = strata.Strata()[s];
+        // A directional light's direction is the way its light travels.
+        lights.push_back(
+            MakeDirectionalLight(-Normalize(rotation.Vector(st.direction)), st.energy * scale));
+    }
+    return lights;
+}
 
 Vec2 EnvironmentMapTables::DirectionToUv(const Vec3& d) {
     const float theta = std::acos(std::clamp(d.y, -1.0f, 1.0f));

@@ -94,6 +94,11 @@ class Light {
     }
     // Infinite lights: radiance arriving along a ray that leaves the scene in direction d.
     virtual Rgb Le(const Vec3& /*d*/) const { return {}; }
+    // A background: an infinite light whose light reaches surfaces through other lights
+    // (an environment map's light set, structured_sampling.h), so that it is never sampled
+    // and counts only where a ray from the camera sees it directly or through specular
+    // scattering alone.
+    virtual bool IsBackground() const { return false; }
 };
 
 }  // namespace tessera

@@ -50,14 +50,25 @@ std::shared_ptr<const EnvironmentMapTables> MakeEnvironmentMapTables(int width, 
 //            probability 1/2 (uniform over the sphere where the receiver has none);
 //   kDistribution: the map's 2D distribution over luminance x sin theta (the default);
 //   kStructured: structured importance sampling (structured_sampling.h): a stratum by its
-//                energy, then a direction within it, with its exact density.
-enum class EnvironmentSampling { kUniform, kCosine, kDistribution, kStructured };
+//                energy, then a direction within it, with its exact density;
+//   kLightSet: the strata as directional lights (MakeEnvironmentLightSet), the map itself a
+//              background (Light::IsBackground): fast and biased.
+enum class EnvironmentSampling { kUniform, kCosine, kDistribution, kStructured, kLightSet };
 inline constexpr const char* kEnvironmentSamplingNames[] = {"uniform", "cosine", "distribution",
-                                                            "structured"};
+                                                            "structured", "lightset"};
 class StructuredSampling;  // light/structured_sampling.h
 
+// Structured importance sampling's light set: one directional light per stratum, from the
+// stratum's direction turned by `rotation`, with its energy (the integral of the radiance
+// over its texels) times `scale` as irradiance. In StructuredSampling::Order(), so that a
+// light sampler's neighbouring values pick neighbouring directions.
+std::vector<std::unique_ptr<Light>> MakeEnvironmentLightSet(const StructuredSampling& strata,
+                                                            Rgb scale,
+                                                            const Transform& rotation = {});
+
 // Radiance from the map times `scale`, the map turned by `rotation` (map to world).
-// kStructured needs `structured`, built from the same map.
+// kStructured needs `structured`, built from the same map; kLightSet makes the background
+// that goes with MakeEnvironmentLightSet's lights.
 std::unique_ptr<Light> MakeImageEnvironmentLight(
     std::shared_ptr<const EnvironmentMapTables> tables, Rgb scale, const Transform& rotation = {},
     EnvironmentSampling sampling = EnvironmentSampling::kDistribution,

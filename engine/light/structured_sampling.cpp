@@ -57,6 +57,35 @@ constexpr uint32_t kVersion = 1;
 // A sanity bound on decoded maps (8192 x 16384 texels): runs of black texels cost a few
 // bytes whatever their length, so the blob's size alone does not bound the allocation.
 constexpr int64_t kMaxTexels = int64_t(1) << 27;
+
+// The position of a unit direction along a Hilbert curve over its octahedral map
+// (2^16 x 2^16 cells): nearby keys are nearby directions.
+uint64_t HilbertKey(const Vec3& d) {
+    const float l1 = std::abs(d.x) + std::abs(d.y) + std::abs(d.z);
+    float px = d.x / l1, pz = d.z / l1;
+    if (d.y < 0) {
+        const float ox = (1 - std::abs(pz)) * (px >= 0 ? 1.0f : -1.0f);
+        const float oz = (1 - std::abs(px)) * (pz >= 0 ? 1.0f : -1.0f);
+        px = ox;
+        pz = oz;
+    }
+    constexpr uint32_t kSide = 1u << 16;
+    uint32_t x = std::min(uint32_t((px * 0.5f + 0.5f) * kSide), kSide - 1);
+    uint32_t y = std::min(uint32_t((pz * 0.5f + 0.5f) * kSide), kSide - 1);
+    uint64_t key = 0;
+    for (uint32_t s = kSide / 2; s > 0; s /= 2) {
+        const uint32_t rx = (x & s) ? 1 : 0, ry = (y & s) ? 1 : 0;
+        key += uint64_t(s) * s * ((3 * rx) ^ ry);
+        if (ry == 0) {  // rotate the quadrant
+            if (rx == 1) {
+                x = kSide - 1 - x;
+                y = kSide - 1 - y;
+            }
+            std::swap(x, y);
+        }
+    }
+    return key;
+}
 const char* const kWhat = "structured sampling table";
 
 // Unit directions of texel centres, by the map's mapping (computed in double, stored in
@@ -447,7 +476,18 @@ void StructuredSampling::Finalize() {
         stratum_weight[s] = float(energy);
         total += energy;
     }
-    stratum_distribution_ = Distribution1D(stratum_weight);
+    // Strata in the order of a Hilbert curve over their directions' octahedral map, so that
+    // neighbouring sample values pick neighbouring strata.
+    order_.resize(strata_.size());
+    std::vector<uint64_t> key(strata_.size());
+    for (size_t s = 0; s < strata_.size(); ++s) {
+        order_[s] = static_cast<int>(s);
+        key[s] = HilbertKey(strata_[s].direction);
+    }
+    std::stable_sort(order_.begin(), order_.end(), [&](int a, int b) { return key[a] < key[b]; });
+    std::vector<float> ordered(strata_.size());
+    for (size_t k = 0; k < order_.size(); ++k) ordered[k] = stratum_weight[order_[k]];
+    stratum_distribution_ = Distribution1D(ordered);
     texel_prob_.assign(n, 0);
     for (int t = 0; t < n; ++t)
         if (stratum_of_[t] >= 0)
@@ -485,7 +525,7 @@ Vec3 StructuredSampling::Sample(Vec2 u, float* pdf) const {
         return Vec3(0, 1, 0);
     }
     float pmf = 0, ux = 0, uy = 0;
-    const SisStratum& st = strata_[stratum_distribution_.SampleDiscrete(u.x, &pmf, &ux)];
+    const SisStratum& st = strata_[order_[stratum_distribution_.SampleDiscrete(u.x, &pmf, &ux)]];
     const int t = st.texels[st.distribution.SampleDiscrete(u.y, &pmf, &uy)];
     const int x = t % width_, y = t / width_;
     *pdf = texel_prob_[t] / row_solid_angle_[y];

@@ -9,11 +9,13 @@
 //
 // Two uses:
 //  (a) the light set: each stratum as a directional light from `direction` (map frame)
-//      with irradiance `energy` (the integral of the radiance over the stratum), e.g.
-//      MakeDirectionalLight(-rotation(direction), energy * scale). Fast and biased.
+//      with irradiance `energy` (the integral of the radiance over the stratum):
+//      MakeEnvironmentLightSet in light/lights.h. Fast and biased.
 //  (b) unbiased sampling: Sample/Pdf (a stratum in proportion to its energy, a texel in it,
 //      a uniform direction within the texel), or one sample per stratum with
 //      SampleStratum/StratumPdf, the paper's stratified estimator.
+// Sample draws strata in Order(), along a Hilbert curve over their directions, so that a
+// stratified u.x also stratifies the sphere.
 //
 // A built table is a farm artifact: Encode/Decode carry it between processes, and Build is
 // deterministic (the same map and settings give the same bytes).
@@ -74,6 +76,9 @@ class StructuredSampling {
     int Height() const { return height_; }
     int NumStrata() const { return static_cast<int>(strata_.size()); }
     const std::vector<SisStratum>& Strata() const { return strata_; }
+    // The strata along a Hilbert curve over their directions (the order Sample draws them
+    // in: neighbouring values of u.x pick neighbouring strata).
+    const std::vector<int>& Order() const { return order_; }
     // The stratum a texel (row-major index) belongs to; -1 for texels of zero luminance.
     int StratumOf(int texel) const { return stratum_of_[texel]; }
 
@@ -123,7 +128,8 @@ class StructuredSampling {
     std::vector<float> texel_prob_;        // per texel: the probability Sample picks it
     std::vector<float> row_solid_angle_;   // per row: a texel's solid angle
     std::vector<float> row_cos_edge_;      // cos theta at the top of each row, and the bottom
-    Distribution1D stratum_distribution_;  // over strata, by luminance energy
+    std::vector<int> order_;               // strata along a Hilbert curve of their directions
+    Distribution1D stratum_distribution_;  // over order_, by luminance energy
 };
 
 }  // namespace tessera

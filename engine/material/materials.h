@@ -14,6 +14,7 @@ namespace tessera {
 
 class MeasuredBrdfTable;  // material/measured_brdf.h
 class FactoredBrdf;       // material/factored_brdf.h
+class BrdfFitSampler;     // material/brdf_fit.h
 
 using TextureRef = std::shared_ptr<const Texture>;
 
@@ -51,6 +52,12 @@ std::unique_ptr<Material> MakePlasticMaterial(TextureRef diffuse, float eta, flo
 // table), or by the cosine when it is null.
 std::unique_ptr<Material> MakeMeasuredMaterial(std::shared_ptr<const MeasuredBrdfTable> table,
                                                std::shared_ptr<const FactoredBrdf> factored);
+// The same, directions sampled through an analytic fit of the table (a Lambertian term and a
+// GGX lobe, MakeBrdfFitSampler); the fit only decides where to sample, f is the table's.
+std::unique_ptr<Material> MakeMeasuredMaterial(std::shared_ptr<const MeasuredBrdfTable> table,
+                                               std::shared_ptr<const BrdfFitSampler> fit);
+// Fits the model to `table` and makes its sampler (FitBrdf; a fraction of a second).
+std::shared_ptr<const BrdfFitSampler> MakeBrdfFitSampler(const MeasuredBrdfTable& table);
 // A linear blend (1 - w) a + w b of two materials, w the channel average of `weight`
 // (values in [0, 1]) at the surface point. `a` and `b` are not owned: they must outlive
 // the blend (in a scene, both are the scene's materials too).

@@ -196,6 +196,12 @@ void Scene::AddMovingInstance(int prototype, std::vector<Transform> steps) {
 
 void Scene::AddLight(std::unique_ptr<Light> light) { lights_.push_back(std::move(light)); }
 
+void Scene::AddTable(SceneTable table) {
+    for (const SceneTable& t : tables_)
+        if (t.kind == table.kind && t.key == table.key) return;
+    tables_.push_back(std::move(table));
+}
+
 void Scene::SetCamera(std::unique_ptr<Camera> camera) { camera_ = std::move(camera); }
 
 void Scene::StoreShape(std::vector<std::unique_ptr<Shape>>& table, unsigned id,
@@ -210,7 +216,7 @@ void Scene::Commit() {
     std::vector<const Light*> all;
     for (auto& light : lights_) {
         light->Preprocess(bounds_);
-        all.push_back(light.get());
+        if (!light->IsBackground()) all.push_back(light.get());
         if (light->Type() == LightType::kInfinite) infinite_lights_.push_back(light.get());
     }
     light_sampler_ = std::make_unique<LightSampler>(all);

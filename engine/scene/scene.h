@@ -16,6 +16,7 @@
 #include "material/material.h"
 #include "scene/interaction.h"
 #include "scene/mesh.h"
+#include "scene/table_cache.h"
 
 namespace tessera {
 
@@ -85,6 +86,9 @@ class Scene {
     const std::vector<std::unique_ptr<Light>>& Lights() const { return lights_; }
     const std::vector<const Light*>& InfiniteLights() const { return infinite_lights_; }
     const LightSampler& GetLightSampler() const { return *light_sampler_; }
+    // The precomputed tables (scene/table_cache.h) its lights and materials use, each once.
+    void AddTable(SceneTable table);
+    const std::vector<SceneTable>& Tables() const { return tables_; }
     const Bounds3& Bounds() const { return bounds_; }
     size_t NumTriangles() const;
     // Whether any shape moves during the shutter.
@@ -114,6 +118,7 @@ class Scene {
     std::unordered_map<const Light*, ConvexLightShape> convex_light_geometry_;
     std::vector<const Light*> infinite_lights_;
     std::unique_ptr<LightSampler> light_sampler_;
+    std::vector<SceneTable> tables_;
     std::unique_ptr<Camera> camera_;
     Bounds3 bounds_;
     bool has_motion_ = false;

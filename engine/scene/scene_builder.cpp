@@ -1,10 +1,14 @@
 #include "scene/scene_builder.h"
 
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <mutex>
@@ -24,6 +28,7 @@
 #include "material/materials.h"
 #include "material/measured_brdf.h"
 #include "scene/mesh.h"
+#include "scene/table_cache.h"
 
 namespace tessera {
 
@@ -263,34 +268,6 @@ TextureRef BlendWeight(const ColorParam& p, const std::vector<TextureRef>& textu
     return t;
 }
 
-// Tables made from a file's bytes (an environment map's sampling tables, a measured BRDF),
-// shared while any scene holds them: the frames of an animation, rebuilt frame by frame,
-// and scenes that name the same file twice make each table once. Keyed by the bytes' hash
-// and size and how they are read.
-template <typename T>
-class FileTableCache {
-  public:
-    std::shared_ptr<const T> Get(std::string_view bytes, const std::string& how,
-                                 const std::function<std::shared_ptr<const T>()>& make) {
-        const Key key{wire::Fnv1a(bytes), bytes.size(), how};
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            auto it = entries_.find(key);
-            if (it != entries_.end())
-                if (std::shared_ptr<const T> hit = it->second.lock()) return hit;
-        }
-        std::shared_ptr<const T> made = make();
-        std::lock_guard<std::mutex> lock(mutex_);
-        entries_[key] = made;
-        return made;
-    }
-
-  private:
-    using Key = std::tuple<uint64_t, size_t, std::string>;
-    std::mutex mutex_;
-    std::map<Key, std::weak_ptr<const T>> entries_;
-};
-
 // A measured BRDF's table from its file (MERL .binary, or an irregular .brdf resampled).
 std::shared_ptr<const MeasuredBrdfTable> LoadMeasuredBrdf(const MaterialRecord& m,
                                                           const SceneRecords& records) {
@@ -311,10 +288,69 @@ std::shared_ptr<const MeasuredBrdfTable> LoadMeasuredBrdf(const MaterialRecord& 
     }
 }
 
+// The file beside a measured BRDF that keeps its factorisation between runs: a header
+// line, the key of what it was made from (TableKey of the BRDF's bytes and the settings),
+// then FactoredBrdf::Encode's bytes.
+constexpr std::string_view kFactorisationHeader = "tessera factored BRDF 1\n";
+
+std::string FactorisationFile(const std::string& brdf_path) { return brdf_path + ".factored"; }
+
+// The factorisation that `key` names, from the file beside the BRDF when that file was made
+// from the same bytes and settings; else built and written there for the next run. Only for
+// scenes loaded from a person's own folders: a bundle's folder (farm) is not written, and a
+// file there is not read (the coordinator ships its tables instead). A file that cannot be
+// written costs only the next run's build time: a debug message, never an error.
+std::shared_ptr<const FactoredBrdf> LoadOrBuildFactorisation(const MeasuredBrdfTable& table,
+                                                             const FactoredBrdfSettings& settings,
+                                                             const std::string& key,
+                                                             const MaterialRecord& m,
+                                                             const SceneRecords& records) {
+    const bool local = records.sandbox_root.empty();
+    const std::string path = FactorisationFile(m.path);
+    if (local) {
+        try {
+            std::error_code ec;
+            if (std::filesystem::is_regular_file(path, ec)) {
+                const std::string bytes = ReadFileBytes(path, records.max_file_bytes, path);
+                const std::string header = std::string(kFactorisationHeader) + key + "\n";
+                if (bytes.compare(0, header.size(), header) == 0) {
+                    FactoredBrdf f = FactoredBrdf::Decode(bytes.substr(header.size()));
+                    spdlog::debug("measured BRDF '{}': factorisation read from '{}'", m.path, path);
+                    return std::make_shared<const FactoredBrdf>(std::move(f));
+                }
+                spdlog::debug("'{}' was made from other bytes or settings: factorising again",
+                              path);
+            }
+        } catch (const std::exception& e) {
+            spdlog::debug("'{}' is not usable ({}): factorising again", path, e.what());
+        }
+    }
+    auto built = std::make_shared<const FactoredBrdf>(FactoredBrdf::Build(table, settings));
+    if (local) {
+        const std::string temp = path + ".tmp" + std::to_string(::getpid());
+        try {
+            {
+                std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+                out << kFactorisationHeader << key << "\n" << built->Encode();
+                out.close();
+                if (!out) throw std::runtime_error("cannot write '" + temp + "'");
+            }
+            std::filesystem::rename(temp, path);
+        } catch (const std::exception& e) {
+            std::error_code ec;
+            std::filesystem::remove(temp, ec);
+            spdlog::debug("the factorisation of '{}' is not kept beside it: {}", m.path, e.what());
+        }
+    }
+    return built;
+}
+
+// Precomputed tables a material uses are added to `tables`.
 std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
                                        const std::vector<TextureRef>& textures,
                                        const SceneRecords& records,
-                                       const std::vector<std::unique_ptr<Material>>& built) {
+                                       const std::vector<std::unique_ptr<Material>>& built,
+                                       std::vector<SceneTable>* tables) {
     switch (m.kind) {
         case MaterialKind::kDiffuse:
             return MakeDiffuseMaterial(Reflectance(m.reflectance, textures, records));
@@ -340,17 +376,38 @@ std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
                                      BlendWeight(m.weight, textures, records));
         case MaterialKind::kMeasured: {
             std::shared_ptr<const MeasuredBrdfTable> table = LoadMeasuredBrdf(m, records);
-            std::shared_ptr<const FactoredBrdf> factored;
-            if (m.factored) {
-                // Made once per table (and shared while scenes hold it).
-                static FileTableCache<FactoredBrdf> cache;
-                factored = cache.Get(
-                    ReadReferencedFile(m.path, records),
-                    "factored " + std::filesystem::path(m.path).extension().string(), [&] {
-                        return std::make_shared<const FactoredBrdf>(FactoredBrdf::Build(*table));
-                    });
+            // Samplers are made once per table (and shared while scenes hold them).
+            const std::string ext = std::filesystem::path(m.path).extension().string();
+            switch (m.measured_sampling) {
+                case MeasuredSampling::kFactored: {
+                    FactoredBrdfSettings settings;
+                    settings.j_terms = m.factored_terms[0];
+                    settings.k_terms = m.factored_terms[1];
+                    const std::string bytes = ReadReferencedFile(m.path, records);
+                    const std::string how = "factored " + ext + " J" +
+                                            std::to_string(settings.j_terms) + " K" +
+                                            std::to_string(settings.k_terms);
+                    const std::string key = TableKey(bytes, how);
+                    std::shared_ptr<const FactoredBrdf> factored =
+                        FactoredTables().Get(bytes, how, [&] {
+                            return LoadOrBuildFactorisation(*table, settings, key, m, records);
+                        });
+                    tables->push_back(SceneTable{std::string(kFactoredTableKind), key, factored,
+                                                 [factored] { return factored->Encode(); }});
+                    return MakeMeasuredMaterial(std::move(table), std::move(factored));
+                }
+                case MeasuredSampling::kFit: {
+                    static FileTableCache<BrdfFitSampler> cache;
+                    std::shared_ptr<const BrdfFitSampler> fit =
+                        cache.Get(ReadReferencedFile(m.path, records), "fit " + ext,
+                                  [&] { return MakeBrdfFitSampler(*table); });
+                    return MakeMeasuredMaterial(std::move(table), std::move(fit));
+                }
+                case MeasuredSampling::kCosine:
+                    return MakeMeasuredMaterial(std::move(table),
+                                                std::shared_ptr<const FactoredBrdf>());
             }
-            return MakeMeasuredMaterial(std::move(table), std::move(factored));
+            throw std::logic_error("unknown measured BRDF sampling");
         }
     }
     throw std::logic_error("unknown material kind");
@@ -359,12 +416,12 @@ std::unique_ptr<Material> MakeMaterial(const MaterialRecord& m,
 // Builds material `i` into `built`, a blend's parts first (the parser ruled out cycles).
 // A blend keeps pointers to its parts, which stay valid when `built` moves into the Scene.
 void BuildMaterial(int i, const std::vector<TextureRef>& textures, const SceneRecords& records,
-                   std::vector<std::unique_ptr<Material>>* built) {
+                   std::vector<std::unique_ptr<Material>>* built, std::vector<SceneTable>* tables) {
     if ((*built)[i]) return;
     const MaterialRecord& m = records.materials[i];
     if (m.kind == MaterialKind::kBlend)
-        for (int part : m.parts) BuildMaterial(part, textures, records, built);
-    (*built)[i] = MakeMaterial(m, textures, records, *built);
+        for (int part : m.parts) BuildMaterial(part, textures, records, built, tables);
+    (*built)[i] = MakeMaterial(m, textures, records, *built, tables);
 }
 
 // An environment map's tables from its file's bytes: RGB (a single channel is grey; alpha
@@ -407,23 +464,29 @@ std::shared_ptr<const EnvironmentMapTables> LoadEnvironmentMap(const LightRecord
 }
 
 // The strata of structured importance sampling for the map of `l`, made once per map and
-// number of strata.
+// number of strata (or installed from a farm's coordinator), and listed in `tables`.
 std::shared_ptr<const StructuredSampling> LoadStructuredSampling(const LightRecord& l,
                                                                  const SceneRecords& records,
-                                                                 const EnvironmentMapTables& map) {
-    static FileTableCache<StructuredSampling> cache;
+                                                                 const EnvironmentMapTables& map,
+                                                                 std::vector<SceneTable>* tables) {
     SisSettings settings;
     settings.strata = l.strata;
-    return cache.Get(
+    std::string key;
+    std::shared_ptr<const StructuredSampling> strata = StrataTables().Get(
         ReadReferencedFile(l.path, records),
         std::filesystem::path(l.path).extension().string() + " strata " + std::to_string(l.strata),
         [&] {
             return std::make_shared<const StructuredSampling>(
                 StructuredSampling::Build(map, settings));
-        });
+        },
+        &key);
+    tables->push_back(SceneTable{std::string(kStrataTableKind), key, strata,
+                                 [strata] { return strata->Encode(); }});
+    return strata;
 }
 
-std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& records) {
+std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& records,
+                                 std::vector<SceneTable>* tables) {
     switch (l.kind) {
         case LightKind::kPoint:
             return MakePointLight(l.position, l.value);
@@ -436,13 +499,30 @@ std::unique_ptr<Light> MakeLight(const LightRecord& l, const SceneRecords& recor
                 std::shared_ptr<const EnvironmentMapTables> map = LoadEnvironmentMap(l, records);
                 std::shared_ptr<const StructuredSampling> structured;
                 if (l.sampling == EnvironmentSampling::kStructured)
-                    structured = LoadStructuredSampling(l, records, *map);
+                    structured = LoadStructuredSampling(l, records, *map, tables);
                 return MakeImageEnvironmentLight(std::move(map), l.scale, l.rotation, l.sampling,
                                                  std::move(structured));
             }
             return MakeConstantEnvironmentLight(l.value * l.scale);
     }
     throw std::logic_error("unknown light kind");
+}
+
+// The lights of record `l`: one, or an environment map's background and light set.
+void AddLights(const LightRecord& l, const SceneRecords& records, Scene* scene,
+               std::vector<SceneTable>* tables) {
+    if (l.kind == LightKind::kEnvironment && !l.path.empty() &&
+        l.sampling == EnvironmentSampling::kLightSet) {
+        std::shared_ptr<const EnvironmentMapTables> map = LoadEnvironmentMap(l, records);
+        std::shared_ptr<const StructuredSampling> strata =
+            LoadStructuredSampling(l, records, *map, tables);
+        for (std::unique_ptr<Light>& light : MakeEnvironmentLightSet(*strata, l.scale, l.rotation))
+            scene->AddLight(std::move(light));
+        scene->AddLight(
+            MakeImageEnvironmentLight(std::move(map), l.scale, l.rotation, l.sampling, strata));
+        return;
+    }
+    scene->AddLight(MakeLight(l, records, tables));
 }
 
 std::unique_ptr<Camera> MakeCamera(const CameraRecord& c, Vec2i resolution, double time_open,
@@ -610,9 +690,10 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
     files.clear();
 
     std::vector<TextureRef> textures = MakeTextures(records);
+    std::vector<SceneTable> tables;  // precomputed ones the scene uses (table_cache.h)
     std::vector<std::unique_ptr<Material>> materials(records.materials.size());
     for (size_t i = 0; i < records.materials.size(); ++i)
-        BuildMaterial(int(i), textures, records, &materials);
+        BuildMaterial(int(i), textures, records, &materials, &tables);
 
     LoadedScene out;
     out.settings = settings;
@@ -703,7 +784,8 @@ LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settin
             steps.push_back(inst.animation->Evaluate(t) * inst.transform);
         scene.AddMovingInstance(prototype_of[inst.object], std::move(steps));
     }
-    for (const LightRecord& l : records.lights) scene.AddLight(MakeLight(l, records));
+    for (const LightRecord& l : records.lights) AddLights(l, records, &scene, &tables);
+    for (SceneTable& t : tables) scene.AddTable(std::move(t));
     scene.SetCamera(MakeCamera(records.camera, settings.resolution, t0, t1));
     scene.Commit();
     return out;

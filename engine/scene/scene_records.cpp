@@ -798,8 +798,23 @@ MaterialRecord ParseMaterial(const std::string& name, const JsonValue& v, const 
                     "a measured BRDF is a MERL '.binary' file or an irregularly sampled "
                     "'.brdf' file, got '" +
                     ext + "'");
+            // In MeasuredSampling's order.
             if (auto s = o.Get("sampling"))
-                m.factored = ParseEnum(*s, {"factored", "cosine"}, "measured BRDF sampling") == 0;
+                m.measured_sampling = MeasuredSampling(
+                    ParseEnum(*s, {"factored", "cosine", "fit"}, "measured BRDF sampling"));
+            // The factorisation's J (outer terms) and K (inner terms per outer one).
+            if (auto t = o.Get("terms")) {
+                if (m.measured_sampling != MeasuredSampling::kFactored)
+                    t->Fail("'terms' belongs to \"sampling\": \"factored\"");
+                if (t->IsArray()) {
+                    if (t->Size() != 2) t->Fail("'terms' is [J, K] or one number for both");
+                    const std::vector<JsonValue> jk = t->Elements();
+                    m.factored_terms = {int(jk[0].AsInt(1, 8)), int(jk[1].AsInt(1, 8))};
+                } else {
+                    const int n = int(t->AsInt(1, 8));
+                    m.factored_terms = {n, n};
+                }
+            }
             break;
         }
     }
@@ -1166,8 +1181,9 @@ LightRecord ParseLight(const JsonValue& v, const Context& ctx) {
                     "environment sampling"));
             }
             if (auto n = o.Get("strata")) {
-                if (l.sampling != EnvironmentSampling::kStructured)
-                    n->Fail("'strata' belongs to \"sampling\": \"structured\"");
+                if (l.sampling != EnvironmentSampling::kStructured &&
+                    l.sampling != EnvironmentSampling::kLightSet)
+                    n->Fail("'strata' belongs to \"sampling\": \"structured\" or \"lightset\"");
                 l.strata = int(n->AsInt(1, 1 << 20));
             }
             if (auto r = o.Get("rotate")) {
@@ -1215,6 +1231,7 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
         }
     }
     if (materials) {
+        ctx.section = "materials";
         // Every name first, so that a blend may refer to a material defined after it.
         auto entries = materials->AsObject().Entries();
         int next = 0;
@@ -1240,6 +1257,7 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
             rec.instances.push_back(ParseInstance(i, ctx));
     }
     if (lights) {
+        ctx.section = "lights";
         for (const JsonValue& l : lights->Elements()) rec.lights.push_back(ParseLight(l, ctx));
     }
 

@@ -55,6 +55,10 @@ enum class MaterialKind {
     kMeasured
 };
 
+// How a measured BRDF's directions are sampled: through its factored representation, by
+// the cosine alone, or through an analytic fit (a Lambertian term and a GGX lobe).
+enum class MeasuredSampling { kFactored, kCosine, kFit };
+
 // A material, named (from the "materials" section) or inline in a blend (name empty).
 struct MaterialRecord {
     std::string name, where;
@@ -70,10 +74,11 @@ struct MaterialRecord {
     // SceneRecords::materials; no cycles) and w the weight (value.r or a texture).
     std::array<int, 2> parts = {-1, -1};
     ColorParam weight;
-    // measured: the BRDF file (resolved) and where it was named; importance sampling
-    // through its factored representation (else by the cosine).
+    // measured: the BRDF file (resolved) and where it was named, and how its directions
+    // are importance-sampled.
     std::string path, path_where;
-    bool factored = true;
+    MeasuredSampling measured_sampling = MeasuredSampling::kFactored;
+    std::array<int, 2> factored_terms = {4, 4};  // J, K of the factorisation
 };
 
 struct EmissionRecord {
