@@ -23,6 +23,7 @@
 #include "io/image_io.h"
 #include "light/lights.h"
 #include "light/structured_sampling.h"
+#include "scene/scene_builder.h"
 
 namespace tessera {
 namespace {
@@ -67,26 +68,11 @@ ImageFormat CheckOptions(const StrataOptions& o) {
     return *format;
 }
 
-// The map's texels as a scene reads them (scene_builder.cpp): R, G and B by name (by
-// position where a name is missing), a single channel as grey, other channels ignored.
+// The map's tables, as a scene reads them (EnvironmentMapTablesOf).
 std::shared_ptr<const EnvironmentMapTables> ReadMap(const std::string& path) {
     try {
-        const Image image =
-            DecodeImage(ReadFileBytes(path, kMaxMapBytes, path), path, ImageDecodeLimits());
-        int rgb[3] = {0, 0, 0};
-        if (image.NumChannels() >= 3) {
-            const char* names[3] = {"R", "G", "B"};
-            for (int c = 0; c < 3; ++c) {
-                const int i = image.ChannelIndex(names[c]);
-                rgb[c] = i >= 0 ? i : c;
-            }
-        }
-        std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
-        for (int y = 0; y < image.height; ++y)
-            for (int x = 0; x < image.width; ++x)
-                texels[size_t(y) * image.width + x] =
-                    Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
-        return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
+        return EnvironmentMapTablesOf(
+            DecodeImage(ReadFileBytes(path, kMaxMapBytes, path), path, ImageDecodeLimits()));
     } catch (const std::exception& e) {
         throw SceneError("", fmt::format("environment map: {}", e.what()));
     }

@@ -424,28 +424,11 @@ void BuildMaterial(int i, const std::vector<TextureRef>& textures, const SceneRe
     (*built)[i] = MakeMaterial(m, textures, records, *built, tables);
 }
 
-// An environment map's tables from its file's bytes: RGB (a single channel is grey; alpha
-// and other channels are ignored), decoded within the scene's limits.
+// An environment map's tables from its file's bytes, decoded within the scene's limits.
 std::shared_ptr<const EnvironmentMapTables> EnvironmentMapTablesOf(const std::string& bytes,
                                                                    const std::string& shown,
                                                                    const SceneRecords& records) {
-    const Image image = DecodeImage(bytes, shown, records.image_limits);
-    const int channels = image.NumChannels();
-    if (channels < 1) throw std::runtime_error("the image has no channels");
-    int rgb[3] = {0, 0, 0};
-    if (channels >= 3) {
-        const char* names[3] = {"R", "G", "B"};
-        for (int c = 0; c < 3; ++c) {
-            const int i = image.ChannelIndex(names[c]);
-            rgb[c] = i >= 0 ? i : c;
-        }
-    }
-    std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
-    for (int y = 0; y < image.height; ++y)
-        for (int x = 0; x < image.width; ++x)
-            texels[size_t(y) * image.width + x] =
-                Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
-    return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
+    return EnvironmentMapTablesOf(DecodeImage(bytes, shown, records.image_limits));
 }
 
 std::shared_ptr<const EnvironmentMapTables> LoadEnvironmentMap(const LightRecord& l,
@@ -671,6 +654,25 @@ RenderSettings ApplyRenderOverrides(RenderSettings s, const RenderOverrides& o) 
     }
     if (o.debug) s.debug = *o.debug;
     return s;
+}
+
+std::shared_ptr<const EnvironmentMapTables> EnvironmentMapTablesOf(const Image& image) {
+    const int channels = image.NumChannels();
+    if (channels < 1) throw std::runtime_error("the image has no channels");
+    int rgb[3] = {0, 0, 0};
+    if (channels >= 3) {
+        const char* names[3] = {"R", "G", "B"};
+        for (int c = 0; c < 3; ++c) {
+            const int i = image.ChannelIndex(names[c]);
+            rgb[c] = i >= 0 ? i : c;
+        }
+    }
+    std::vector<Rgb> texels(size_t(image.width) * size_t(image.height));
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x)
+            texels[size_t(y) * image.width + x] =
+                Rgb(image.At(x, y, rgb[0]), image.At(x, y, rgb[1]), image.At(x, y, rgb[2]));
+    return MakeEnvironmentMapTables(image.width, image.height, std::move(texels));
 }
 
 LoadedScene BuildScene(const SceneRecords& records, const RenderSettings& settings) {
