@@ -245,17 +245,20 @@ Image RenderTiled(Vec2i res, int tile_size, const Filter& filter) {
                 for (int s = 0; s < kSpp; ++s) {
                     SyntheticSample(x, y, s, &p, &v);
                     tile_film.AddSample(p, v);
+                    if (s == 0) tile_film.SetFirstSample(Vec2i(x, y), v.normal, v.depth);
                 }
         film.Merge(tile_film);
     }
     return film.Resolve();
 }
 
-// What the film's sums should be, computed directly per pixel in double, with the absolute
-// sums that bound how far one float rounding per tile can move them.
+// What the film's filtered sums should be, computed directly per pixel in double, with the
+// absolute sums that bound how far one float rounding per tile can move them: R G B (weight
+// w), albedo R G B (weight max(w, 0)), then the sums of max(w, 0) and of w.
+constexpr int kSums = 8, kAlbedoWeightSum = 6, kWeightSum = 7;
 struct ReferencePixel {
-    double sum[TileFilm::kChannels] = {};
-    double abs_sum[TileFilm::kChannels] = {};
+    double sum[kSums] = {};
+    double abs_sum[kSums] = {};
 };
 
 std::vector<ReferencePixel> ReferenceSums(Vec2i res, const Filter& filter) {
@@ -273,13 +276,14 @@ std::vector<ReferencePixel> ReferenceSums(Vec2i res, const Filter& filter) {
                         SyntheticSample(sx, sy, s, &p, &v);
                         double dx = x + 0.5 - p.x, dy = y + 0.5 - p.y;
                         if (!(dx > -r && dx <= r && dy > -r && dy <= r)) continue;
-                        double w = filter.Evaluate({(x + 0.5f) - p.x, (y + 0.5f) - p.y});
-                        const double values[TileFilm::kChannels] = {
-                            v.L.r,      v.L.g,      v.L.b,      v.albedo.r, v.albedo.g, v.albedo.b,
-                            v.normal.x, v.normal.y, v.normal.z, v.depth,    1.0};
-                        for (int c = 0; c < TileFilm::kChannels; ++c) {
-                            px.sum[c] += w * values[c];
-                            px.abs_sum[c] += std::abs(w * values[c]);
+                        const double w = filter.Evaluate({(x + 0.5f) - p.x, (y + 0.5f) - p.y});
+                        const double wp = std::max(w, 0.0);
+                        const double weighted[kSums] = {
+                            w * v.L.r,       w * v.L.g,       w * v.L.b, wp * v.albedo.r,
+                            wp * v.albedo.g, wp * v.albedo.b, wp,        w};
+                        for (int c = 0; c < kSums; ++c) {
+                            px.sum[c] += weighted[c];
+                            px.abs_sum[c] += std::abs(weighted[c]);
                         }
                     }
         }
@@ -304,8 +308,13 @@ TEST_P(SeamTest, TilingsGiveTheSameImage) {
     const Image whole = RenderTiled(res, std::max(res.x, res.y), *filter);
     const std::vector<ReferencePixel> ref = ReferenceSums(res, *filter);
     const int apron = static_cast<int>(std::ceil(filter->Radius() - 0.5f));
-    // Tile channel c of the sums -> image channel (A sits after B).
-    auto image_channel = [](int c) { return c < 3 ? c : c + 1; };
+    // Filtered image channels: R G B over the sum of w, albedo over the sum of max(w, 0).
+    struct Filtered {
+        int image_channel, sum, weight;
+    };
+    const Filtered filtered[] = {{0, 0, kWeightSum},       {1, 1, kWeightSum},
+                                 {2, 2, kWeightSum},       {4, 3, kAlbedoWeightSum},
+                                 {5, 4, kAlbedoWeightSum}, {6, 5, kAlbedoWeightSum}};
 
     for (int tile_size : {8, 16, 13, std::max(res.x, res.y)}) {
         SCOPED_TRACE(std::string(TypeName(GetParam())) + " tile " + std::to_string(tile_size));
@@ -317,26 +326,32 @@ TEST_P(SeamTest, TilingsGiveTheSameImage) {
         for (int y = 0; y < res.y; ++y)
             for (int x = 0; x < res.x; ++x) {
                 const ReferencePixel& px = ref[y * res.x + x];
-                const double weight = px.sum[TileFilm::kChannels - 1];
-                ASSERT_GT(weight, 0.1);
-                const double weight_err = kU * px.abs_sum[TileFilm::kChannels - 1] + 1e-13 * weight;
                 EXPECT_EQ(image.At(x, y, 3), 1.0f);
-                for (int c = 0; c < TileFilm::kChannels - 1; ++c) {
+                // N and Z: the pixel's first sample's, exactly, whatever the filter.
+                Vec2 p0;
+                SampleValue v0;
+                SyntheticSample(x, y, 0, &p0, &v0);
+                ASSERT_EQ(image.At(x, y, 7), v0.normal.x);
+                ASSERT_EQ(image.At(x, y, 8), v0.normal.y);
+                ASSERT_EQ(image.At(x, y, 9), v0.normal.z);
+                ASSERT_EQ(image.At(x, y, 10), v0.depth);
+                for (const Filtered& f : filtered) {
+                    const int c = f.sum;
+                    const double weight = px.sum[f.weight];
+                    ASSERT_GT(weight, 0.1);
+                    const double weight_err = kU * px.abs_sum[f.weight] + 1e-13 * weight;
                     const double expected = px.sum[c] / weight;
                     const double sum_err = kU * px.abs_sum[c] + 1e-13 * px.abs_sum[c];
                     const double bound =
                         (sum_err + std::abs(expected) * weight_err) / (weight - weight_err) +
                         kU * std::abs(expected) * 1.01;
-                    const float got = image.At(x, y, image_channel(c));
+                    const float got = image.At(x, y, f.image_channel);
                     ASSERT_LE(std::abs(got - expected), bound)
                         << "pixel " << x << "," << y << " channel " << c;
                     const double rounding =
-                        kU *
-                        (px.abs_sum[c] + std::abs(expected) * px.abs_sum[TileFilm::kChannels - 1]) /
-                        weight;
-                    max_difference =
-                        std::max(max_difference,
-                                 std::abs(got - whole.At(x, y, image_channel(c))) / rounding);
+                        kU * (px.abs_sum[c] + std::abs(expected) * px.abs_sum[f.weight]) / weight;
+                    max_difference = std::max(
+                        max_difference, std::abs(got - whole.At(x, y, f.image_channel)) / rounding);
                 }
                 // Reached from one tile only: identical order of identical additions.
                 const int tx = x % tile_size, ty = y % tile_size;
@@ -383,6 +398,7 @@ TEST(FilmTest, ConstantRadianceGivesConstantImage) {
                     for (int s = 0; s < 8; ++s) {
                         uint64_t key = Hash(11, x, y, s);
                         tile_film.AddSample({x + UniformAt(key, 0), y + UniformAt(key, 1)}, v);
+                        if (s == 0) tile_film.SetFirstSample(Vec2i(x, y), v.normal, v.depth);
                     }
             film.Merge(tile_film);
         }
@@ -481,6 +497,59 @@ TEST(FilterTest, TentShapeAndNames) {
     EXPECT_EQ(ParseFilterSampling("Importance"), std::nullopt);
 }
 
+// A pixel's N and Z are its first sample's, never blended with its neighbours' or its own
+// later samples; the albedo is filtered with the filter's positive part, so that a
+// negative lobe cannot push it out of [0, 1] at an edge; alpha is coverage on a
+// transparent film.
+TEST(FilmTest, AovsAreFirstSampleAndNonNegativelyFiltered) {
+    const Vec2i res(8, 4);
+    // Mitchell-Netravali with B = 0, C = 1: deep negative lobes.
+    FilterSettings sharp;
+    sharp.type = FilterType::kMitchell;
+    sharp.mitchell_b = 0;
+    sharp.mitchell_c = 1;
+    auto mitchell = MakeFilter(sharp);
+    Film film(res);
+    TileFilm tile(PixelBounds{{0, 0}, {8, 4}}, res, *mitchell);
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x)
+            for (int s = 0; s < 4; ++s) {
+                const uint64_t key = Hash(23, x, y, s);
+                SampleValue v;
+                // Left half: a white surface facing +z at depth 2; right half: nothing.
+                const bool hit = x < 4;
+                v.L = Rgb(hit ? 1.0f : 0.0f);
+                v.albedo = Rgb(hit ? 1.0f : 0.0f);
+                v.normal = hit ? Vec3(0, 0, 1) : Vec3();
+                v.depth = hit ? 2.0f + s : 0.0f;  // later samples lie elsewhere
+                tile.AddSample({x + UniformAt(key, 0), y + UniformAt(key, 1)}, v);
+                if (s == 0)
+                    tile.SetFirstSample(Vec2i(x, y), v.normal, hit ? 2.0f : kBackgroundDepth);
+            }
+    film.Merge(tile);
+    const Image opaque = film.Resolve(), transparent = film.Resolve(true);
+    for (int y = 0; y < res.y; ++y)
+        for (int x = 0; x < res.x; ++x) {
+            const bool hit = x < 4;
+            EXPECT_EQ(opaque.At(x, y, opaque.ChannelIndex("Z")), hit ? 2.0f : kBackgroundDepth);
+            EXPECT_EQ(opaque.At(x, y, opaque.ChannelIndex("N.Z")), hit ? 1.0f : 0.0f);
+            EXPECT_EQ(opaque.At(x, y, opaque.ChannelIndex("A")), 1.0f);
+            for (const char* c : {"albedo.R", "albedo.G", "albedo.B"}) {
+                EXPECT_GE(opaque.At(x, y, opaque.ChannelIndex(c)), 0.0f) << x << "," << y;
+                EXPECT_LE(opaque.At(x, y, opaque.ChannelIndex(c)), 1.0f) << x << "," << y;
+            }
+            const float alpha = transparent.At(x, y, transparent.ChannelIndex("A"));
+            // Far from the edge: all or nothing; at it, in between.
+            if (x <= 1) EXPECT_NEAR(alpha, 1.0f, 1e-6f);
+            if (x >= 6) EXPECT_NEAR(alpha, 0.0f, 1e-6f);
+        }
+    // The negative lobes do reach past the edge: R (filtered with them) overshoots.
+    bool overshoot = false;
+    for (int y = 0; y < res.y; ++y)
+        overshoot = overshoot || opaque.At(3, y, 0) > 1.0f || opaque.At(4, y, 0) < 0.0f;
+    EXPECT_TRUE(overshoot) << "the test's edge does not exercise the negative lobes";
+}
+
 TEST(TileFilmTest, ImportanceSamplingNeedsNoApron) {
     const Vec2i res(40, 30);
     const PixelBounds interior{{16, 8}, {24, 16}};
@@ -509,7 +578,8 @@ TEST(TileFilmTest, ImportanceSamplingNeedsNoApron) {
     EXPECT_EQ(touched[0], 1 * 8 + 1);
     const float* px = &film.Data()[touched[0] * TileFilm::kChannels];
     EXPECT_EQ(px[1], 0.75f * 2);
-    EXPECT_EQ(px[9], 0.75f * 4);
+    EXPECT_EQ(px[6], 1.0f);   // the albedo's weights: the negative one counts as 0
+    EXPECT_EQ(px[7], 0.75f);  // coverage: both samples hit (depth 4)
     EXPECT_EQ(px[TileFilm::kChannels - 1], 0.75f);
 }
 

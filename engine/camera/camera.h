@@ -54,6 +54,9 @@ class Camera {
     // camera at shutter time `time` in [0, 1) sees the reference point. Empty when the
     // reference point is behind the camera, outside the field of view or on the lens.
     virtual std::optional<CameraWiSample> SampleWi(const Vec3& p_ref, Vec2 u, float time) const = 0;
+    // The unit direction the camera looks along at shutter time `time` (camera space +z in
+    // world space): a point's planar depth is its distance from the lens plane along it.
+    virtual Vec3 ViewDirection(float time) const = 0;
 };
 
 }  // namespace tessera

@@ -68,6 +68,12 @@ class PerspectiveCamera final : public Camera {
         *pdf_dir = 1 / (FilmArea(v) * cos_theta * cos_theta * cos_theta);
     }
 
+    Vec3 ViewDirection(float time) const override {
+        std::optional<View> moving;
+        const View& v = ViewAt(time, &moving);
+        return Normalize(v.camera_to_world.Vector(Vec3(0, 0, 1)));
+    }
+
     std::optional<CameraWiSample> SampleWi(const Vec3& p_ref, Vec2 u, float time) const override {
         std::optional<View> moving;
         const View& v = ViewAt(time, &moving);

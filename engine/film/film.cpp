@@ -11,8 +11,10 @@ namespace tessera {
 
 namespace {
 
-// Channels of a tile film pixel, in order; the weight sum is last.
-constexpr int kWeightChannel = TileFilm::kChannels - 1;
+// Channels of a tile film pixel (TileFilm::kChannels says what each holds).
+constexpr int kAlbedoChannel = 3, kAlbedoWeightChannel = 6, kCoverageChannel = 7,
+              kNormalChannel = 8, kDepthChannel = 11, kFirstSampleChannel = 12,
+              kWeightChannel = TileFilm::kChannels - 1;
 
 std::string ToString(const PixelBounds& b) {
     return "[" + std::to_string(b.lo.x) + "," + std::to_string(b.hi.x) + ")x[" +
@@ -63,23 +65,42 @@ TileFilm::TileFilm(const PixelBounds& tile, Vec2i resolution, const Filter& filt
     weights_y_.assign(footprint, 0.0f);
 }
 
-void TileFilm::Accumulate(size_t offset, double weight, const double* values) {
+void TileFilm::Accumulate(size_t offset, double weight, const SampleValue& v) {
     double* sum = &sums_[offset];
     float* out = &data_[offset];
     // Weight and values are floats widened to double, so their product is exact and only
     // the additions round.
-    for (int c = 0; c < kWeightChannel; ++c) {
-        sum[c] += weight * values[c];
+    const auto add = [&](int c, double value) {
+        sum[c] += value;
         out[c] = static_cast<float>(sum[c]);
+    };
+    add(0, weight * v.L.r);
+    add(1, weight * v.L.g);
+    add(2, weight * v.L.b);
+    const double positive = std::max(weight, 0.0);
+    add(kAlbedoChannel, positive * v.albedo.r);
+    add(kAlbedoChannel + 1, positive * v.albedo.g);
+    add(kAlbedoChannel + 2, positive * v.albedo.b);
+    add(kAlbedoWeightChannel, positive);
+    if (v.depth > 0) add(kCoverageChannel, weight);
+    add(kWeightChannel, weight);
+}
+
+void TileFilm::SetFirstSample(Vec2i pixel, const Vec3& normal, float planar_depth) {
+    if (pixel.x < tile_.lo.x || pixel.x >= tile_.hi.x || pixel.y < tile_.lo.y ||
+        pixel.y >= tile_.hi.y)
+        return;
+    const size_t offset =
+        (static_cast<size_t>(pixel.y - region_.lo.y) * region_.Width() + (pixel.x - region_.lo.x)) *
+        kChannels;
+    const float values[5] = {normal.x, normal.y, normal.z, planar_depth, 1.0f};
+    for (int c = 0; c < 5; ++c) {
+        sums_[offset + kNormalChannel + c] = values[c];
+        data_[offset + kNormalChannel + c] = values[c];
     }
-    sum[kWeightChannel] += weight;
-    out[kWeightChannel] = static_cast<float>(sum[kWeightChannel]);
 }
 
 void TileFilm::AddSample(Vec2 p_film, const SampleValue& v) {
-    const double values[kWeightChannel] = {v.L.r,      v.L.g,      v.L.b,      v.albedo.r,
-                                           v.albedo.g, v.albedo.b, v.normal.x, v.normal.y,
-                                           v.normal.z, v.depth};
     auto offset_of = [&](int x, int y) {
         return (static_cast<size_t>(y - region_.lo.y) * region_.Width() + (x - region_.lo.x)) *
                kChannels;
@@ -91,7 +112,7 @@ void TileFilm::AddSample(Vec2 p_film, const SampleValue& v) {
         double fx = std::floor(p_film.x), fy = std::floor(p_film.y);
         if (!(fx >= region_.lo.x && fx < region_.hi.x && fy >= region_.lo.y && fy < region_.hi.y))
             return;
-        Accumulate(offset_of(static_cast<int>(fx), static_cast<int>(fy)), 1.0, values);
+        Accumulate(offset_of(static_cast<int>(fx), static_cast<int>(fy)), 1.0, v);
         return;
     }
 
@@ -119,7 +140,7 @@ void TileFilm::AddSample(Vec2 p_film, const SampleValue& v) {
             if (wy == 0) continue;
             for (int x = ix0; x <= ix1; ++x) {
                 float w = weights_x_[x - ix0] * wy;
-                if (w != 0) Accumulate(offset_of(x, y), w, values);
+                if (w != 0) Accumulate(offset_of(x, y), w, v);
             }
         }
         return;
@@ -127,7 +148,7 @@ void TileFilm::AddSample(Vec2 p_film, const SampleValue& v) {
     for (int y = iy0; y <= iy1; ++y) {
         for (int x = ix0; x <= ix1; ++x) {
             float w = filter_->Evaluate({(x + 0.5f) - p_film.x, (y + 0.5f) - p_film.y});
-            if (w != 0) Accumulate(offset_of(x, y), w, values);
+            if (w != 0) Accumulate(offset_of(x, y), w, v);
         }
     }
 }
@@ -136,13 +157,10 @@ void TileFilm::AddPixelSample(Vec2i pixel, float weight, const SampleValue& v) {
     if (pixel.x < region_.lo.x || pixel.x >= region_.hi.x || pixel.y < region_.lo.y ||
         pixel.y >= region_.hi.y || !std::isfinite(weight))
         return;
-    const double values[kWeightChannel] = {v.L.r,      v.L.g,      v.L.b,      v.albedo.r,
-                                           v.albedo.g, v.albedo.b, v.normal.x, v.normal.y,
-                                           v.normal.z, v.depth};
     Accumulate(
         (static_cast<size_t>(pixel.y - region_.lo.y) * region_.Width() + (pixel.x - region_.lo.x)) *
             kChannels,
-        weight, values);
+        weight, v);
 }
 
 Film::Film(Vec2i resolution) : resolution_(resolution) {
@@ -174,7 +192,7 @@ void Film::Merge(const PixelBounds& region, const std::vector<float>& data) {
     }
 }
 
-Image Film::Resolve() const {
+Image Film::Resolve(bool transparent) const {
     Image image;
     image.width = resolution_.x;
     image.height = resolution_.y;
@@ -185,12 +203,16 @@ Image Film::Resolve() const {
     for (size_t p = 0; p < static_cast<size_t>(resolution_.x) * resolution_.y; ++p) {
         const double* sum = &sums_[p * TileFilm::kChannels];
         float* out = &image.pixels[p * n];
+        if (sum[kFirstSampleChannel] > 0)
+            for (int c = 0; c < 4; ++c) out[7 + c] = static_cast<float>(sum[kNormalChannel + c]);
         double weight = sum[kWeightChannel];
         if (weight == 0) continue;
-        // Tile channels R G B albedo normal Z map to image channels with A after B.
         for (int c = 0; c < 3; ++c) out[c] = static_cast<float>(sum[c] / weight);
-        out[3] = 1;
-        for (int c = 3; c < kWeightChannel; ++c) out[c + 1] = static_cast<float>(sum[c] / weight);
+        out[3] = transparent ? static_cast<float>(sum[kCoverageChannel] / weight) : 1.0f;
+        if (sum[kAlbedoWeightChannel] > 0)
+            for (int c = 0; c < 3; ++c)
+                out[4 + c] =
+                    static_cast<float>(sum[kAlbedoChannel + c] / sum[kAlbedoWeightChannel]);
     }
     return image;
 }

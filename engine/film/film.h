@@ -78,6 +78,10 @@ struct SampleValue {
     float depth = 0;  // distance along the camera ray to the first hit (0 if none)
 };
 
+// The depth AOV of a pixel whose first sample saw no geometry (as Cycles writes it):
+// far beyond any scene, and finite, so that compositors' depth operations stay defined.
+inline constexpr float kBackgroundDepth = 1e10f;
+
 // A half-open rectangle of pixels [lo, hi).
 struct PixelBounds {
     Vec2i lo, hi;
@@ -98,9 +102,18 @@ class SeparableFilter;  // film/filter.h
 
 class TileFilm {
   public:
-    // Channels per pixel: weighted sums of R G B, albedo RGB, normal XYZ, depth, then
-    // the weight sum.
-    static constexpr int kChannels = 11;
+    // Channels per pixel:
+    //   0-2   R G B summed with the filter's weight w;
+    //   3-5   albedo R G B summed with max(w, 0), and 6 that weight's sum: a filter's
+    //         negative lobes would push an albedo out of [0, 1] at edges;
+    //   7     coverage, w where the camera ray hit geometry (a transparent film's alpha);
+    //   8-10  N X Y Z and 11 Z, the planar depth, of the pixel's first sample, in its own
+    //         pixel only: never blended across an edge, so that compositors and denoisers
+    //         see one surface per pixel (Z is kBackgroundDepth, N zero, where it hit
+    //         nothing);
+    //   12    1 where the first sample's N and Z were recorded;
+    //   13    the sum of w.
+    static constexpr int kChannels = 14;
 
     // With FilterSampling::kImportance the film holds the tile alone (no apron) and takes
     // its samples through AddPixelSample.
@@ -111,6 +124,8 @@ class TileFilm {
     // Importance sampling: adds `v` with `weight` (f / pdf of the sample's filter offset)
     // to `pixel` alone. Pixels outside Region() and non-finite weights are dropped.
     void AddPixelSample(Vec2i pixel, float weight, const SampleValue& v);
+    // The normal and planar depth of `pixel`'s first sample (`pixel` in Tile()).
+    void SetFirstSample(Vec2i pixel, const Vec3& normal, float planar_depth);
     // The pixels this film holds: the tile grown by the apron, clipped to the image.
     const PixelBounds& Region() const { return region_; }
     const PixelBounds& Tile() const { return tile_; }
@@ -121,7 +136,7 @@ class TileFilm {
     std::vector<float>& MutableData() { return data_; }
 
   private:
-    void Accumulate(size_t offset, double weight, const double* values);
+    void Accumulate(size_t offset, double weight, const SampleValue& v);
 
     PixelBounds tile_, region_;
     const Filter* filter_;
@@ -147,8 +162,10 @@ class Film {
     // that arrived over the network.
     void Merge(const PixelBounds& region, const std::vector<float>& data);
     // Divides by the weights: channels R G B A albedo.R albedo.G albedo.B N.X N.Y N.Z Z.
-    // A is 1 where any sample landed. Pixels with zero weight are black.
-    Image Resolve() const;
+    // A is 1 where any sample landed, or with `transparent` the share of the samples that
+    // hit geometry. Pixels with zero weight are black. N and Z are the first sample's
+    // (zero where a pixel has none: integrators that trace no camera rays).
+    Image Resolve(bool transparent = false) const;
 
   private:
     Vec2i resolution_;

@@ -339,6 +339,16 @@ TileFilm FrameRenderer::RenderTile(const PixelBounds& tile, ScratchBuffer& arena
                 // A NaN or infinity would poison the whole pixel (and its neighbours
                 // through the filter); drop the sample's radiance instead.
                 if (v.L.HasNaN() || std::isinf(v.L.r + v.L.g + v.L.b)) v.L = Rgb();
+                // A transparent film leaves out the background the camera sees directly.
+                if (settings_.transparent && !(v.depth > 0)) v.L = Rgb();
+                if (i == 0) {
+                    // Planar depth: along the view direction; the lens lies in the plane
+                    // through the camera's position perpendicular to it.
+                    const float z = v.depth > 0
+                                        ? v.depth * Dot(ray.d, camera.ViewDirection(cs.time))
+                                        : kBackgroundDepth;
+                    film.SetFirstSample(Vec2i(x, y), v.depth > 0 ? v.normal : Vec3(), z);
+                }
                 if (filter_sampler_)
                     film.AddPixelSample(Vec2i(x, y), fs.weight, v);
                 else

@@ -70,6 +70,7 @@ RenderPlan MakeRenderPlan(Vec2i resolution, const RenderSettings& settings) {
     plan.frame = settings.frame;
     plan.resolution = resolution;
     plan.spp = settings.spp;
+    plan.transparent = settings.transparent;
     plan.tiles = MakeTiles(resolution, settings.tile_size);
     const float film_radius = FilmRadius(settings.filter);
     for (const PixelBounds& tile : plan.tiles)
@@ -377,7 +378,7 @@ Image FrameAssembler::Assemble() const {
     Film film(plan_.resolution);
     for (const StageSum& s : stages_)
         for (const TileResult& r : s.tiles) film.Merge(r.region, r.data);
-    Image image = film.Resolve();
+    Image image = film.Resolve(plan_.transparent);
     const size_t pixels = size_t(plan_.resolution.x) * plan_.resolution.y;
     const int n = image.NumChannels();
     // Without tiles, splats alone render every pixel.

@@ -103,7 +103,8 @@ struct RenderPlan {
     // filter's apron, clipped to the image.
     std::vector<PixelBounds> tile_regions;
     std::vector<StagePlan> stages;
-    MltPlan mlt;  // integrator mlt only
+    MltPlan mlt;               // integrator mlt only
+    bool transparent = false;  // the film's (RenderSettings::transparent)
     int TotalTasks() const;
     // Tasks of the stages before `stage`: a task's position among the frame's tasks is
     // StageOffset(stage) + its index in the stage.

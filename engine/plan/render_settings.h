@@ -126,6 +126,10 @@ struct RenderSettings {
     // whole image rows of sample streams.
     int light_paths_per_task = 1 << 20;
     FilterSettings filter;
+    // A transparent film leaves out what camera rays see of the background (the
+    // environment) directly: alpha is then the share of samples that hit geometry, and RGB
+    // is premultiplied by it (the background adds nothing), for compositing.
+    bool transparent = false;
     int frame = 0;
     Vec2i resolution{512, 512};
     PhotonOptions photon;

@@ -47,6 +47,7 @@ std::string EncodeRenderSettings(const RenderSettings& s) {
     put("filter.mitchell_b", s.filter.mitchell_b);
     put("filter.mitchell_c", s.filter.mitchell_c);
     put("filter.sampling", FilterSamplingName(s.filter.sampling));
+    put("transparent", int(s.transparent));
     put("frame", s.frame);
     put("width", s.resolution.x);
     put("height", s.resolution.y);
@@ -122,6 +123,7 @@ RenderSettings DecodeRenderSettings(const std::string& text) {
         if (!m) throw std::invalid_argument(fmt::format("settings: {} = '{}' is unknown", k, v));
         s.filter.sampling = *m;
     };
+    set["transparent"] = b(s.transparent);
     set["frame"] = i(s.frame);
     set["width"] = i(s.resolution.x);
     set["height"] = i(s.resolution.y);

@@ -291,6 +291,7 @@ RenderSettings ParseRender(const JsonValue& v) {
     if (auto t = o.Get("light_paths_per_task")) r.light_paths_per_task = int(t->AsInt(1, 1 << 30));
     if (auto f = o.Get("frame")) r.frame = int(f->AsInt(0, 1 << 30));
     if (auto f = o.Get("filter")) r.filter = ParseFilter(*f);
+    if (auto t = o.Get("transparent")) r.transparent = t->AsBool();
     if (auto p = o.Get("photon")) r.photon = ParsePhoton(*p);
     if (auto c = o.Get("irradiance_cache")) r.irradiance = ParseIrradianceCache(*c);
     if (auto m = o.Get("mlt")) r.mlt = ParseMlt(*m);
