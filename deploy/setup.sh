@@ -19,6 +19,7 @@ PACKAGES=(
   libxxhash-dev libzstd-dev libssl-dev
   libnanoflann-dev
   python3-yaml ffmpeg
+  python3-grpcio python3-protobuf
   clang libclang-rt-dev ninja-build
 )
 
