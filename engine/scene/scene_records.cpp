@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "io/file_bytes.h"
 #include "scene/json_value.h"
+#include "scene/pbrt_import.h"
 
 namespace tessera {
 
@@ -199,6 +200,26 @@ struct Context {
         }
         files.push_back({section, given, resolved});
         return resolved;
+    }
+
+    // The bytes of a file that the scene file includes (pbrt's Include), named as
+    // written, under the same rules as ResolveFile's. Throws std::runtime_error saying why
+    // it cannot be read.
+    std::string ReadIncluded(const std::string& given) const {
+        if (given.empty()) throw std::runtime_error("empty file name");
+        if (!sandbox_root.empty()) {
+            if (!StaysInBundle(given))
+                throw std::runtime_error(
+                    "not in the scene's bundle: a bundle's scene may refer only to relative "
+                    "paths without '..'");
+            fs::path rel = (scene_dir_in_bundle / given).lexically_normal();
+            if (std::string why = CheckBundleFile(sandbox_root, rel, max_file_bytes); !why.empty())
+                throw std::runtime_error(why);
+            return ReadFileBelow(sandbox_root.string(), rel.string(), max_file_bytes);
+        }
+        fs::path p(given);
+        if (p.is_relative()) p = base_dir / p;
+        return ReadFileBytes(p.lexically_normal().string(), max_file_bytes, given);
     }
 };
 
@@ -1194,6 +1215,11 @@ LightRecord ParseLight(const JsonValue& v, const Context& ctx) {
                 ro.Finish("rotate");
                 l.rotation = Transform::Rotate(angle, axis);
             }
+            if (auto m = o.Get("mirror")) {
+                if (!file) m->Fail("only an environment map can be mirrored");
+                // u -> 1 - u in the map's frame, before the rotation.
+                if (m->AsBool()) l.rotation = l.rotation * Transform::Scale({1, 1, -1});
+            }
             break;
         }
     }
@@ -1275,6 +1301,32 @@ SceneRecords ParseDocument(const JsonDocument& doc, const std::string& shown, Co
     return rec;
 }
 
+// A pbrt scene: converted in memory (scene/pbrt_import.h), then parsed like any scene; the
+// files it includes are read under the same rules as the files it references, and listed
+// first among them. Errors in the converted scene name the pbrt file and line.
+SceneRecords ParsePbrtDocument(const std::string& text, const std::string& shown, Context ctx) {
+    const PbrtImport pbrt = ImportPbrt(
+        shown, text, [&ctx](const std::string& given) { return ctx.ReadIncluded(given); });
+    LogPbrtWarnings(pbrt);
+    SceneRecords rec;
+    try {
+        rec = ParseDocument(JsonDocument::Parse(pbrt.json, shown), shown, std::move(ctx));
+    } catch (const SceneError& e) {
+        throw pbrt.Relocate(e);
+    }
+    std::vector<std::string> files = pbrt.included_files;
+    for (std::string& f : rec.referenced_files)
+        if (std::find(files.begin(), files.end(), f) == files.end()) files.push_back(std::move(f));
+    rec.referenced_files = std::move(files);
+    return rec;
+}
+
+// The scene file's text, in Tessera's format or (by its extension) pbrt's.
+SceneRecords ParseSceneDocument(const std::string& text, const std::string& shown, Context ctx) {
+    if (IsPbrtFile(shown)) return ParsePbrtDocument(text, shown, std::move(ctx));
+    return ParseDocument(JsonDocument::Parse(text, shown), shown, std::move(ctx));
+}
+
 // A scene from a bundle: the scene file itself passes the same checks as its references,
 // and is named relative to the bundle root.
 SceneRecords ParseSandboxedSceneFile(const std::string& path, const SceneLoadOptions& options) {
@@ -1300,7 +1352,7 @@ SceneRecords ParseSandboxedSceneFile(const std::string& path, const SceneLoadOpt
     ctx.sandbox_root = root;
     ctx.scene_dir_in_bundle = rel.parent_path();
     ctx.max_file_bytes = options.max_file_bytes;
-    return ParseDocument(JsonDocument::Parse(text, shown), shown, std::move(ctx));
+    return ParseSceneDocument(text, shown, std::move(ctx));
 }
 
 Context LocalContext(const std::string& path, uint64_t max_file_bytes) {
@@ -1316,14 +1368,12 @@ namespace {
 
 // A scene file outside any sandbox, read under the same size limit as the files it names
 // (its inline meshes count towards it).
-JsonDocument LoadLocalSceneFile(const std::string& path, uint64_t max_file_bytes) {
-    std::string text;
+std::string ReadLocalSceneFile(const std::string& path, uint64_t max_file_bytes) {
     try {
-        text = ReadFileBytes(path, max_file_bytes, path);
+        return ReadFileBytes(path, max_file_bytes, path);
     } catch (const std::runtime_error& e) {
         throw SceneError(path, std::string("scene file ") + e.what());
     }
-    return JsonDocument::Parse(text, path);
 }
 
 }  // namespace
@@ -1331,16 +1381,15 @@ JsonDocument LoadLocalSceneFile(const std::string& path, uint64_t max_file_bytes
 SceneRecords ParseSceneFile(const std::string& path, const SceneLoadOptions& options) {
     SceneRecords rec = options.sandboxed
                            ? ParseSandboxedSceneFile(path, options)
-                           : ParseDocument(LoadLocalSceneFile(path, options.max_file_bytes), path,
-                                           LocalContext(path, options.max_file_bytes));
+                           : ParseSceneDocument(ReadLocalSceneFile(path, options.max_file_bytes),
+                                                path, LocalContext(path, options.max_file_bytes));
     rec.max_file_bytes = options.max_file_bytes;
     rec.image_limits = options.image_limits;
     return rec;
 }
 
 SceneRecords ParseSceneText(const std::string& text, const std::string& path) {
-    return ParseDocument(JsonDocument::Parse(text, path), path,
-                         LocalContext(path, SceneLoadOptions().max_file_bytes));
+    return ParseSceneDocument(text, path, LocalContext(path, SceneLoadOptions().max_file_bytes));
 }
 
 }  // namespace tessera
