@@ -14,13 +14,11 @@
 #include "material/brdf_fit.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <optional>
 #include <stdexcept>
@@ -35,12 +33,11 @@
 #include "plan/local_runner.h"
 #include "render_compare.h"
 #include "scene/scene_loader.h"
+#include "scene_files.h"
 #include "scene_helpers.h"
 
 namespace tessera {
 namespace {
-
-namespace fs = std::filesystem;
 
 Vec3 Direction(float theta_deg, float phi_deg) {
     const float theta = Radians(theta_deg), phi = Radians(phi_deg);
@@ -153,54 +150,13 @@ const Grid kChi2Grid{0, 1, 0, 2 * kPi, 32, 64};
 // the cells near its peak.
 constexpr int kSubCells = 4;
 
-struct Chi2Run {
-    ChiSquareResult result;
-    double sampled_fraction = 0;  // of Sample calls that gave a direction
-    double pdf_integral = 0;      // of Pdf over the hemisphere
-};
-
-// Sample() of `sampler` binned on (cos theta_i, phi_i), where d omega = d cos d phi, against
-// Pdf() of `density` integrated over each cell.
-Chi2Run RunChi2(const BrdfFitSampler& sampler, const BrdfFitSampler& density, const Vec3& wo,
-                uint64_t seed) {
-    std::vector<double> observed(kChi2Grid.CellCount(), 0);
-    Pcg32 rng(TestSeed(seed));
-    int64_t accepted = 0;
-    for (int n = 0; n < kChi2Samples; ++n) {
-        const float uc = rng.NextFloat();
-        const Vec2 u(rng.NextFloat(), rng.NextFloat());
-        float pdf = 0;
-        const std::optional<Vec3> wi = sampler.Sample(wo, u, uc, &pdf);
-        if (!wi) continue;
-        ++accepted;
-        float phi = std::atan2(wi->y, wi->x);
-        if (phi < 0) phi += 2 * kPi;
-        observed[kChi2Grid.Cell(wi->z, phi)] += 1;
-    }
-    auto pdf = [&](double c, double phi) {
-        const double s = std::sqrt(std::max(0.0, 1 - c * c));
-        return double(
-            density.Pdf(wo, Vec3(float(s * std::cos(phi)), float(s * std::sin(phi)), float(c))));
-    };
-    Chi2Run run;
-    run.sampled_fraction = double(accepted) / kChi2Samples;
-    std::vector<double> expected(kChi2Grid.CellCount(), 0);
-    const double dx = (kChi2Grid.x1 - kChi2Grid.x0) / (kChi2Grid.nx * kSubCells);
-    const double dy = (kChi2Grid.y1 - kChi2Grid.y0) / (kChi2Grid.ny * kSubCells);
-    for (int iy = 0; iy < kChi2Grid.ny; ++iy)
-        for (int ix = 0; ix < kChi2Grid.nx; ++ix) {
-            double p = 0;
-            for (int sy = 0; sy < kSubCells; ++sy)
-                for (int sx = 0; sx < kSubCells; ++sx) {
-                    const double x0 = kChi2Grid.x0 + (ix * kSubCells + sx) * dx;
-                    const double y0 = kChi2Grid.y0 + (iy * kSubCells + sy) * dy;
-                    p += IntegrateRect(pdf, x0, x0 + dx, y0, y0 + dy);
-                }
-            run.pdf_integral += p;
-            expected[iy * kChi2Grid.nx + ix] = p * kChi2Samples;
-        }
-    run.result = ChiSquareTest(observed, expected);
-    return run;
+// Sample() of `sampler` binned on (cos theta_i, phi_i) against Pdf() of `density`.
+HemisphereChi2Run RunChi2(const BrdfFitSampler& sampler, const BrdfFitSampler& density,
+                          const Vec3& wo, uint64_t seed) {
+    return RunHemisphereChi2(
+        [&](const Vec2& u, float uc, float* pdf) { return sampler.Sample(wo, u, uc, pdf); },
+        [&](const Vec3& wi) { return density.Pdf(wo, wi); }, kChi2Samples, kChi2Grid, kSubCells,
+        seed);
 }
 
 struct Chi2Case {
@@ -216,7 +172,7 @@ TEST_P(BrdfFitChi2, SampleMatchesPdf) {
     const Chi2Case& c = GetParam();
     const BrdfFitSampler sampler(c.fit);
     const Vec3 wo = Direction(c.theta_o, 37);
-    const Chi2Run run = RunChi2(sampler, sampler, wo, c.seed);
+    const HemisphereChi2Run run = RunChi2(sampler, sampler, wo, c.seed);
     EXPECT_TRUE(Fits(run.result)) << c.name << " theta_o " << c.theta_o;
     // The pdf integrates to the share of samples that gave a direction (less than one where
     // lobe samples reflect below the horizon).
@@ -249,7 +205,7 @@ INSTANTIATE_TEST_SUITE_P(Fits, BrdfFitChi2, testing::ValuesIn(kChi2Cases),
 // The test must be able to tell a slightly different lobe: alpha 0.33 sampled, 0.3 claimed.
 TEST(BrdfFitChi2Power, RejectsSlightlyWrongPdf) {
     const BrdfFitSampler wrong(BrdfFit{0.2f, 0.6f, 0.33f}), right(BrdfFit{0.2f, 0.6f, 0.3f});
-    const Chi2Run run = RunChi2(wrong, right, Direction(30, 37), 13);
+    const HemisphereChi2Run run = RunChi2(wrong, right, Direction(30, 37), 13);
     EXPECT_LT(run.result.p_value, 1e-6) << run.result;
     std::printf("    alpha 0.33 sampled against a 0.3 pdf: %s\n",
                 testing::PrintToString(run.result).c_str());
@@ -261,39 +217,8 @@ TEST(BrdfFitChi2Power, RejectsSlightlyWrongPdf) {
 // Sample reports Pdf's density, never a direction below the horizon, and nothing for wo at
 // or below it; Pdf is zero below the horizon.
 TEST(BrdfFitSampler, SampleAgreesWithPdfAndStaysAboveTheHorizon) {
-    const BrdfFitSampler sampler(kPlastic);
-    Pcg32 rng(TestSeed(21));
-    int sampled = 0;
-    for (int n = 0; n < 20000; ++n) {
-        const Vec3 wo = SampleUniformHemisphere({rng.NextFloat(), rng.NextFloat()});
-        float pdf = -1;
-        const std::optional<Vec3> wi =
-            sampler.Sample(wo, {rng.NextFloat(), rng.NextFloat()}, rng.NextFloat(), &pdf);
-        if (!wi) continue;
-        ++sampled;
-        ASSERT_GT(wi->z, 0);
-        ASSERT_NEAR(Length(*wi), 1, 1e-5);
-        ASSERT_TRUE(std::isfinite(pdf) && pdf > 0);
-        ASSERT_EQ(pdf, sampler.Pdf(wo, *wi));
-        ASSERT_EQ(sampler.Pdf(wo, Vec3(wi->x, wi->y, -wi->z)), 0);
-        ASSERT_EQ(sampler.Pdf(Vec3(wo.x, wo.y, -wo.z), *wi), 0);
-    }
-    EXPECT_GT(sampled, 19000);
-    float pdf = -1;
-    for (const Vec3& wo : {Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(0.6f, 0, -0.8f)}) {
-        EXPECT_FALSE(sampler.Sample(wo, {0.3f, 0.6f}, 0.5f, &pdf));
-        EXPECT_EQ(pdf, 0);
-    }
-    // Edges of the random numbers, and wo along the normal and at grazing angles.
-    for (const Vec3& wo : {Vec3(0, 0, 1), Direction(89.9f, 10), Direction(45, 0)})
-        for (float a : {0.0f, 0.5f, kOneMinusEpsilon})
-            for (float b : {0.0f, 0.5f, kOneMinusEpsilon})
-                for (float uc : {0.0f, 0.1f, 0.5f, 0.9f, kOneMinusEpsilon}) {
-                    const std::optional<Vec3> wi = sampler.Sample(wo, {a, b}, uc, &pdf);
-                    if (!wi) continue;
-                    EXPECT_GT(wi->z, 0);
-                    EXPECT_TRUE(std::isfinite(pdf) && pdf > 0);
-                }
+    ExpectHemisphereSamplerContract(BrdfFitSampler(kPlastic), 21,
+                                    {0.0f, 0.1f, 0.5f, 0.9f, kOneMinusEpsilon});
 }
 
 // P_spec is the lobe's share of the fit's albedo, clamped to [0.1, 0.9].
@@ -319,34 +244,7 @@ TEST(BrdfFitSampler, LobeProbabilityFollowsTheAlbedos) {
 // ---------------------------------------------------------------------------------------
 // Through the scene loader
 
-class BrdfFitMaterial : public testing::Test {
-  protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera-brdf-fit-" + std::to_string(::getpid()) + "-" +
-                testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-
-    // A sphere of `material` filling a 16 x 16 image under a uniform sky of radiance 1.
-    LoadedScene Load(const std::string& material) {
-        const fs::path scene = dir_ / "scene.json";
-        std::ofstream(scene) << R"({
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "fov": 20},
-  "materials": {"m": )" << material
-                             << R"(},
-  "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})";
-        RenderOverrides o;
-        o.width = 16;
-        o.height = 16;
-        return LoadSceneFile(scene.string(), o);
-    }
-
-    fs::path dir_;
-};
+class BrdfFitMaterial : public test::SphereUnderSkyTest {};
 
 // A glossy measured BRDF (a GGX lobe, alpha 0.2, tabulated) on a sphere under a uniform sky,
 // sampled through its fit or by the cosine: the renders agree (both unbiased: image means
@@ -354,35 +252,14 @@ class BrdfFitMaterial : public testing::Test {
 // lower.
 TEST_F(BrdfFitMaterial, FitSamplingAgreesWithCosineAndIsLessNoisy) {
     WriteMerlBinary((dir_ / "ggx.binary").string(), GgxTable(0.2f));
-    struct Result {
-        double mean, se, variance;
-    };
     auto render = [&](const std::string& sampling) {
-        LoadedScene loaded =
-            Load(R"({"type": "measured", "file": "ggx.binary", "sampling": ")" + sampling + "\"}");
         RenderSettings s = test::Settings("path", 4, test::TestSeed(41));
         s.max_depth = 2;
-        const std::vector<Image> images = test::RenderSeeds(*loaded.scene, s, 8);
-        std::vector<double> means;
-        for (const Image& im : images) {
-            double sum = 0;
-            for (int y = 0; y < im.height; ++y)
-                for (int x = 0; x < im.width; ++x) sum += im.At(x, y, 1);
-            means.push_back(sum / (im.width * im.height));
-        }
-        double variance = 0;
-        for (int y = 0; y < images[0].height; ++y)
-            for (int x = 0; x < images[0].width; ++x) {
-                std::vector<double> v;
-                for (const Image& im : images) v.push_back(im.At(x, y, 1));
-                const test::Estimate e = test::MeanOf(v);
-                variance += e.se * e.se * v.size();
-            }
-        const test::Estimate e = test::MeanOf(means);
-        return Result{e.mean, e.se, variance};
+        return RenderSpread(
+            R"({"type": "measured", "file": "ggx.binary", "sampling": ")" + sampling + "\"}", s);
     };
-    const Result fit = render("fit");
-    const Result cosine = render("cosine");
+    const Spread fit = render("fit");
+    const Spread cosine = render("cosine");
     std::printf("    mean %.4f +- %.4f (fit), %.4f +- %.4f (cosine); variance %.3g vs %.3g\n",
                 fit.mean, fit.se, cosine.mean, cosine.se, fit.variance, cosine.variance);
     EXPECT_NEAR(fit.mean, cosine.mean, 4.5 * std::sqrt(fit.se * fit.se + cosine.se * cosine.se));

@@ -1,8 +1,9 @@
 #pragma once
 
 // Chi-square machinery shared by the statistical tests (warps, BSDFs, light emission):
-// the distribution's tail, Pearson's test with pooling of sparse cells, and a grid of
-// cells with exact expected counts.
+// the distribution's tail, Pearson's test with pooling of sparse cells, a grid of cells
+// with exact expected counts; and, for samplers of directions on the hemisphere (measured
+// BRDFs' Sample(wo, u, uc, &pdf) and Pdf(wo, wi)), the chi-square test and the contract.
 
 #include <gtest/gtest.h>
 
@@ -12,10 +13,16 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <initializer_list>
 #include <numeric>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include "core/math.h"
+#include "core/rng.h"
+#include "core/sampling.h"
 
 namespace tessera {
 
@@ -215,6 +222,115 @@ inline std::vector<double> ExpectedCounts(const Grid& grid,
             expected[iy * grid.nx + ix] = n * IntegrateRect(density, x0, x1, y0, y1);
         }
     return expected;
+}
+
+// One run of RunHemisphereChi2.
+struct HemisphereChi2Run {
+    ChiSquareResult result;
+    double sampled_fraction = 0;  // of sample calls that gave a direction
+    double pdf_integral = 0;      // of the pdf over the hemisphere
+};
+
+// Draws a direction from (u, uc) and reports its density in *pdf; nothing where it fails.
+using HemisphereSampleFn = std::function<std::optional<Vec3>(const Vec2& u, float uc, float* pdf)>;
+// The solid-angle density claimed for a direction.
+using HemispherePdfFn = std::function<float(const Vec3& wi)>;
+// The integral of a density over the rectangle [x0, x1] x [y0, y1].
+using RectIntegralFn = std::function<double(const std::function<double(double, double)>& density,
+                                            double x0, double x1, double y0, double y1)>;
+
+// `samples` directions of `sample` (uc, then u, from one generator seeded with `seed`)
+// binned on (cos theta, phi) by `grid`, where d omega = d cos theta d phi, against the
+// integral of `pdf` over each cell: sub_cells x sub_cells rectangles, each by `integrate`
+// (a density that varies fast within a cell, such as a narrow lobe near its peak, wants more
+// than one; one that jumps, an adaptive rule).
+inline HemisphereChi2Run RunHemisphereChi2(const HemisphereSampleFn& sample,
+                                           const HemispherePdfFn& pdf, int samples,
+                                           const Grid& grid, int sub_cells, uint64_t seed,
+                                           const RectIntegralFn& integrate = IntegrateRect) {
+    std::vector<double> observed(grid.CellCount(), 0);
+    Pcg32 rng(TestSeed(seed));
+    int64_t accepted = 0;
+    for (int n = 0; n < samples; ++n) {
+        const float uc = rng.NextFloat();
+        const Vec2 u(rng.NextFloat(), rng.NextFloat());
+        float sample_pdf = 0;
+        const std::optional<Vec3> wi = sample(u, uc, &sample_pdf);
+        if (!wi) continue;
+        ++accepted;
+        float phi = std::atan2(wi->y, wi->x);
+        if (phi < 0) phi += 2 * kPi;
+        observed[grid.Cell(wi->z, phi)] += 1;
+    }
+    const std::function<double(double, double)> density = [&](double c, double phi) {
+        const double s = std::sqrt(std::max(0.0, 1 - c * c));
+        return double(pdf(Vec3(float(s * std::cos(phi)), float(s * std::sin(phi)), float(c))));
+    };
+    HemisphereChi2Run run;
+    run.sampled_fraction = double(accepted) / samples;
+    std::vector<double> expected(grid.CellCount(), 0);
+    const double dx = (grid.x1 - grid.x0) / (grid.nx * sub_cells);
+    const double dy = (grid.y1 - grid.y0) / (grid.ny * sub_cells);
+    for (int iy = 0; iy < grid.ny; ++iy)
+        for (int ix = 0; ix < grid.nx; ++ix) {
+            double p = 0;
+            for (int sy = 0; sy < sub_cells; ++sy)
+                for (int sx = 0; sx < sub_cells; ++sx) {
+                    const double x0 = grid.x0 + (ix * sub_cells + sx) * dx;
+                    const double y0 = grid.y0 + (iy * sub_cells + sy) * dy;
+                    p += integrate(density, x0, x0 + dx, y0, y0 + dy);
+                }
+            run.pdf_integral += p;
+            expected[iy * grid.nx + ix] = p * samples;
+        }
+    run.result = ChiSquareTest(observed, expected);
+    return run;
+}
+
+// The contract of a hemisphere sampler (Sample(wo, u, uc, &pdf) and Pdf(wo, wi)): for wo
+// uniform over the hemisphere (20000 of them, from `seed`), Sample reports Pdf's density and
+// never a direction below the horizon, and Pdf is zero below it; Sample gives nothing for wo
+// at or below the horizon; and so at the edges of u, at each uc of `ucs`, for wo along the
+// normal and at grazing angles.
+template <typename Sampler>
+void ExpectHemisphereSamplerContract(const Sampler& sampler, uint64_t seed,
+                                     std::initializer_list<float> ucs) {
+    Pcg32 rng(TestSeed(seed));
+    int sampled = 0;
+    for (int n = 0; n < 20000; ++n) {
+        const Vec3 wo = SampleUniformHemisphere({rng.NextFloat(), rng.NextFloat()});
+        float pdf = -1;
+        const std::optional<Vec3> wi =
+            sampler.Sample(wo, {rng.NextFloat(), rng.NextFloat()}, rng.NextFloat(), &pdf);
+        if (!wi) continue;
+        ++sampled;
+        ASSERT_GT(wi->z, 0);
+        ASSERT_NEAR(Length(*wi), 1, 1e-5);
+        ASSERT_TRUE(std::isfinite(pdf) && pdf > 0);
+        ASSERT_EQ(pdf, sampler.Pdf(wo, *wi));
+        ASSERT_EQ(sampler.Pdf(wo, Vec3(wi->x, wi->y, -wi->z)), 0);
+        ASSERT_EQ(sampler.Pdf(Vec3(wo.x, wo.y, -wo.z), *wi), 0);
+    }
+    EXPECT_GT(sampled, 19000);
+    float pdf = -1;
+    for (const Vec3& wo : {Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(0.6f, 0, -0.8f)}) {
+        EXPECT_FALSE(sampler.Sample(wo, {0.3f, 0.6f}, 0.5f, &pdf));
+        EXPECT_EQ(pdf, 0);
+    }
+    // theta 89.9 degrees at phi 10, and theta 45 at phi 0.
+    const Vec3 grazing =
+        SphericalDirection(std::sin(Radians(89.9f)), std::cos(Radians(89.9f)), Radians(10.0f));
+    const Vec3 diagonal =
+        SphericalDirection(std::sin(Radians(45.0f)), std::cos(Radians(45.0f)), Radians(0.0f));
+    for (const Vec3& wo : {Vec3(0, 0, 1), grazing, diagonal})
+        for (float a : {0.0f, 0.5f, kOneMinusEpsilon})
+            for (float b : {0.0f, 0.5f, kOneMinusEpsilon})
+                for (float uc : ucs) {
+                    const std::optional<Vec3> wi = sampler.Sample(wo, {a, b}, uc, &pdf);
+                    if (!wi) continue;
+                    EXPECT_GT(wi->z, 0);
+                    EXPECT_TRUE(std::isfinite(pdf) && pdf > 0);
+                }
 }
 
 }  // namespace tessera

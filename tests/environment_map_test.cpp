@@ -6,11 +6,11 @@
 
 #define TESSERA_CHI_SQUARE_FAMILY_SIZE 5
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -24,6 +24,7 @@
 #include "plan/local_runner.h"
 #include "render_compare.h"
 #include "scene/scene_loader.h"
+#include "scene_files.h"
 #include "scene_helpers.h"
 
 namespace tessera {
@@ -246,35 +247,24 @@ void WriteMap(const fs::path& path, int w, int h, const std::function<Rgb(float,
     WriteExr(path.string(), image, ImageMetadata{});
 }
 
-class EnvironmentMapRender : public testing::Test {
+class EnvironmentMapRender : public test::TempDirTest {
   protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera-envmap-" + std::to_string(::getpid()) + "-" +
-                testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-
     // A diffuse sphere of `albedo` (radius 1 at the origin) filling most of a 16 x 16
     // image seen from +z, under the environment light `light_json`.
     LoadedScene Load(const std::string& light_json, float albedo, int fov = 40) {
-        const fs::path scene = dir_ / "scene.json";
-        std::ofstream(scene) << R"({
+        std::ostringstream json;
+        json << R"({
   "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": )" << fov << R"(},
+             "fov": )"
+             << fov << R"(},
   "materials": {"m": {"type": "diffuse", "reflectance": )"
-                             << albedo << R"(}},
+             << albedo << R"(}},
   "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
-  "lights": [)" << light_json << R"(]
+  "lights": [)"
+             << light_json << R"(]
 })";
-        RenderOverrides o;
-        o.width = 16;
-        o.height = 16;
-        return LoadSceneFile(scene.string(), o);
+        return test::WriteAndLoadScene(dir_ / "scene.json", json.str(), 16, 16);
     }
-
-    fs::path dir_;
 };
 
 // A diffuse sphere under a uniform map of radiance L has irradiance pi L: radiance

@@ -147,51 +147,20 @@ double AdaptiveRect(const G& g, double x0, double x1, double y0, double y1, doub
 constexpr int kChi2Samples = 500000;
 const Grid kChi2Grid{0, 1, 0, 2 * kPi, 32, 64};
 
-struct Chi2Run {
-    ChiSquareResult result;
-    double sampled_fraction = 0;  // of Sample calls that gave a direction
-    double pdf_integral = 0;      // of Pdf over the hemisphere
-};
-
-// Sample() of `sampler` binned on (cos theta_i, phi_i) against Pdf() of `density` integrated
-// over each cell.
-Chi2Run RunChi2(const FactoredBrdf& sampler, const FactoredBrdf& density, const Vec3& wo,
-                uint64_t seed) {
-    std::vector<double> observed(kChi2Grid.CellCount(), 0);
-    Pcg32 rng(TestSeed(seed));
-    int64_t accepted = 0;
-    for (int n = 0; n < kChi2Samples; ++n) {
-        const float uc = rng.NextFloat();
-        const Vec2 u(rng.NextFloat(), rng.NextFloat());
-        float pdf = 0;
-        const std::optional<Vec3> wi = sampler.Sample(wo, u, uc, &pdf);
-        if (!wi) continue;
-        ++accepted;
-        float phi = std::atan2(wi->y, wi->x);
-        if (phi < 0) phi += 2 * kPi;
-        observed[kChi2Grid.Cell(wi->z, phi)] += 1;
-    }
-    auto pdf = [&](double c, double phi) {
-        const double s = std::sqrt(std::max(0.0, 1 - c * c));
-        return double(
-            density.Pdf(wo, Vec3(float(s * std::cos(phi)), float(s * std::sin(phi)), float(c))));
+// Sample() of `sampler` binned on (cos theta_i, phi_i) against Pdf() of `density`, each cell
+// integrated adaptively to a twentieth of its count's standard deviation.
+HemisphereChi2Run RunChi2(const FactoredBrdf& sampler, const FactoredBrdf& density, const Vec3& wo,
+                          uint64_t seed) {
+    const auto adaptive = [](const std::function<double(double, double)>& pdf, double x0, double x1,
+                             double y0, double y1) {
+        const double whole = GaussRect(pdf, x0, x1, y0, y1);
+        const double tol = 0.05 * std::sqrt(std::max(whole * kChi2Samples, 1.0)) / kChi2Samples;
+        return AdaptiveRect(pdf, x0, x1, y0, y1, whole, tol, 7);
     };
-    Chi2Run run;
-    run.sampled_fraction = double(accepted) / kChi2Samples;
-    std::vector<double> expected(kChi2Grid.CellCount(), 0);
-    for (int iy = 0; iy < kChi2Grid.ny; ++iy)
-        for (int ix = 0; ix < kChi2Grid.nx; ++ix) {
-            const double x0 = double(ix) / kChi2Grid.nx, x1 = double(ix + 1) / kChi2Grid.nx;
-            const double y0 = 2 * kPi * iy / kChi2Grid.ny, y1 = 2 * kPi * (iy + 1) / kChi2Grid.ny;
-            const double whole = GaussRect(pdf, x0, x1, y0, y1);
-            // A twentieth of the count's standard deviation.
-            const double tol = 0.05 * std::sqrt(std::max(whole * kChi2Samples, 1.0)) / kChi2Samples;
-            const double p = AdaptiveRect(pdf, x0, x1, y0, y1, whole, tol, 7);
-            run.pdf_integral += p;
-            expected[iy * kChi2Grid.nx + ix] = p * kChi2Samples;
-        }
-    run.result = ChiSquareTest(observed, expected);
-    return run;
+    return RunHemisphereChi2(
+        [&](const Vec2& u, float uc, float* pdf) { return sampler.Sample(wo, u, uc, pdf); },
+        [&](const Vec3& wi) { return density.Pdf(wo, wi); }, kChi2Samples, kChi2Grid,
+        /*sub_cells=*/1, seed, adaptive);
 }
 
 struct Chi2Case {
@@ -207,7 +176,7 @@ TEST_P(FactoredChi2, SampleMatchesPdf) {
     const Chi2Case& c = GetParam();
     const FactoredBrdf& fb = Factored(c.table());
     const Vec3 wo = Direction(c.theta_o, 37);
-    const Chi2Run run = RunChi2(fb, fb, wo, c.seed);
+    const HemisphereChi2Run run = RunChi2(fb, fb, wo, c.seed);
     EXPECT_TRUE(Fits(run.result)) << c.name << " theta_o " << c.theta_o;
     // The pdf integrates to the share of samples that gave a direction (less than one where
     // half vectors reflect below the horizon).
@@ -241,7 +210,7 @@ TEST(FactoredChi2Power, RejectsSlightlyWrongPdf) {
     FactoredBrdfSettings other;
     other.cosine_fraction = 0.15f;
     const FactoredBrdf wrong = FactoredBrdf::Build(Ggx03Table(), other);
-    const Chi2Run run = RunChi2(wrong, Factored(Ggx03Table()), Direction(30, 37), 15);
+    const HemisphereChi2Run run = RunChi2(wrong, Factored(Ggx03Table()), Direction(30, 37), 15);
     EXPECT_LT(run.result.p_value, 1e-6) << run.result;
     std::printf("    15%% cosine samples against a 10%% pdf: %s\n",
                 testing::PrintToString(run.result).c_str());
@@ -367,40 +336,8 @@ TEST(FactoredBrdf, AlbedoIsUnbiasedWithLessVarianceThanCosineSampling) {
 // Sample reports Pdf's density, never a direction below the horizon, and nothing for wo at
 // or below it; Pdf is zero below the horizon.
 TEST(FactoredBrdf, SampleAgreesWithPdfAndStaysAboveTheHorizon) {
-    const FactoredBrdf& fb = Factored(PlasticTable());
-    Pcg32 rng(TestSeed(21));
-    int sampled = 0;
-    for (int n = 0; n < 20000; ++n) {
-        const Vec3 wo = SampleUniformHemisphere({rng.NextFloat(), rng.NextFloat()});
-        float pdf = -1;
-        const std::optional<Vec3> wi =
-            fb.Sample(wo, {rng.NextFloat(), rng.NextFloat()}, rng.NextFloat(), &pdf);
-        if (!wi) continue;
-        ++sampled;
-        ASSERT_GT(wi->z, 0);
-        ASSERT_NEAR(Length(*wi), 1, 1e-5);
-        ASSERT_TRUE(std::isfinite(pdf) && pdf > 0);
-        ASSERT_EQ(pdf, fb.Pdf(wo, *wi));
-        ASSERT_EQ(fb.Pdf(wo, Vec3(wi->x, wi->y, -wi->z)), 0);
-        ASSERT_EQ(fb.Pdf(Vec3(wo.x, wo.y, -wo.z), *wi), 0);
-    }
-    EXPECT_GT(sampled, 19000);
-    float pdf = -1;
-    for (const Vec3& wo : {Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(0.6f, 0, -0.8f)}) {
-        EXPECT_FALSE(fb.Sample(wo, {0.3f, 0.6f}, 0.5f, &pdf));
-        EXPECT_EQ(pdf, 0);
-    }
-    // Edges of the random numbers, and wo along the normal and at grazing angles.
-    for (const Vec3& wo : {Vec3(0, 0, 1), Direction(89.9f, 10), Direction(45, 0)}) {
-        for (float a : {0.0f, 0.5f, kOneMinusEpsilon})
-            for (float b : {0.0f, 0.5f, kOneMinusEpsilon})
-                for (float uc : {0.0f, 0.05f, 0.1f, 0.5f, kOneMinusEpsilon}) {
-                    const std::optional<Vec3> wi = fb.Sample(wo, {a, b}, uc, &pdf);
-                    if (!wi) continue;
-                    EXPECT_GT(wi->z, 0);
-                    EXPECT_TRUE(std::isfinite(pdf) && pdf > 0);
-                }
-    }
+    ExpectHemisphereSamplerContract(Factored(PlasticTable()), 21,
+                                    {0.0f, 0.05f, 0.1f, 0.5f, kOneMinusEpsilon});
 }
 
 // With every sample drawn from the cosine the density is the cosine's.

@@ -17,12 +17,11 @@
 #include <vector>
 
 #include "farm_harness.h"
-#include "io/image_io.h"
-#include "material/measured_brdf.h"
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
 #include "sha256.h"
+#include "scene_files.h"
 
 namespace tessera {
 namespace {
@@ -133,34 +132,9 @@ TEST_F(FarmTest, OneWorkerMatchesTheLocalRender) {
 TEST_F(FarmTest, PrecomputedTablesAreShippedToWorkers) {
     const fs::path scene_dir = dir_ / "tables-scene";
     fs::create_directories(scene_dir);
-    Image map;
-    map.width = 64;
-    map.height = 32;
-    map.channels = {"R", "G", "B"};
-    map.pixels.resize(size_t(64) * 32 * 3);
-    for (int y = 0; y < 32; ++y)
-        for (int x = 0; x < 64; ++x)
-            for (int c = 0; c < 3; ++c)
-                map.At(x, y, c) = (x / 4 == 3 && y / 4 == 2) ? 80.0f : (y < 16 ? 0.6f : 0.1f);
-    WriteExr((scene_dir / "sky.exr").string(), map, {});
-    WriteMerlBinary((scene_dir / "gloss.binary").string(),
-                    TabulateBrdf([](const Vec3& wo, const Vec3& wi) {
-                        const Vec3 h = Normalize(wo + wi);
-                        const float a2 = 0.04f, c2 = h.z * h.z;
-                        const float d = a2 / (kPi * Sqr(c2 * (a2 - 1) + 1));
-                        return Rgb(0.05f) + Rgb(0.9f, 0.8f, 0.6f) * (d / (4 * wo.z * wi.z));
-                    }));
+    test::WriteSunSkyGlossyScene(scene_dir,
+                                 R"({"width": 32, "height": 24, "spp": 4, "tile_size": 16})");
     const std::string scene = (scene_dir / "scene.json").string();
-    std::ofstream(scene) << R"({
-  "render": {"width": 32, "height": 24, "spp": 4, "tile_size": 16},
-  "camera": {"type": "perspective", "eye": [0, 0.5, 4], "target": [0, 0, 0], "fov": 30},
-  "materials": {"m": {"type": "measured", "file": "gloss.binary"},
-                "floor": {"type": "diffuse", "reflectance": 0.5}},
-  "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1},
-             {"type": "quad", "material": "floor",
-              "vertices": [[-4, -1, -4], [-4, -1, 4], [4, -1, 4], [4, -1, -4]]}],
-  "lights": [{"type": "environment", "file": "sky.exr", "sampling": "structured", "strata": 24}]
-})";
     int port = StartCoordinator("state");
     ASSERT_GT(port, 0);
     StartWorker(port, "only", 2);

@@ -6,7 +6,6 @@
 #include "material/measured_brdf.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <array>
 #include <chrono>
@@ -24,6 +23,7 @@
 #include "core/rng.h"
 #include "core/sampling.h"
 #include "material/rough_conductor.h"
+#include "temp_dir.h"
 
 namespace tessera {
 namespace {
@@ -82,16 +82,8 @@ const MeasuredBrdfTable& GoldTable() {
     return table;
 }
 
-class MeasuredBrdfFiles : public testing::Test {
+class MeasuredBrdfFiles : public test::TempDirTest {
   protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera-measured-brdf-" + std::to_string(::getpid()) + "-" +
-                testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-
     std::string Path(const std::string& name) const { return (dir_ / name).string(); }
 
     // A MERL file with any dimensions and raw (unscaled) doubles.
@@ -107,8 +99,6 @@ class MeasuredBrdfFiles : public testing::Test {
         std::ofstream(Path(name)) << text;
         return Path(name);
     }
-
-    fs::path dir_;
 };
 
 // ---------------------------------------------------------------------------------------

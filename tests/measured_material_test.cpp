@@ -6,7 +6,6 @@
 // located scene errors.
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -20,41 +19,13 @@
 #include "plan/local_runner.h"
 #include "render_compare.h"
 #include "scene/scene_loader.h"
+#include "scene_files.h"
 #include "scene_helpers.h"
 
 namespace tessera {
 namespace {
 
-namespace fs = std::filesystem;
-
-class MeasuredMaterial : public testing::Test {
-  protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera-measured-" + std::to_string(::getpid()) + "-" +
-                testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-
-    // A sphere of `material` filling a 16 x 16 image under a uniform sky of radiance 1.
-    LoadedScene Load(const std::string& material) {
-        const fs::path scene = dir_ / "scene.json";
-        std::ofstream(scene) << R"({
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "fov": 20},
-  "materials": {"m": )" << material
-                             << R"(},
-  "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})";
-        RenderOverrides o;
-        o.width = 16;
-        o.height = 16;
-        return LoadSceneFile(scene.string(), o);
-    }
-
-    fs::path dir_;
-};
+class MeasuredMaterial : public test::SphereUnderSkyTest {};
 
 // Every point of a convex sphere under a uniform sky of radiance 1 has irradiance pi: a
 // Lambertian BRDF of albedo a gives radiance a there, measured or analytic.
@@ -88,34 +59,13 @@ TEST_F(MeasuredMaterial, FactoredSamplingAgreesWithCosineAndIsLessNoisy) {
                         const float g = 1 / (1 + lambda(wo) + lambda(wi));
                         return Rgb(0.9f) * (d * g / (4 * wo.z * wi.z));
                     }));
-    struct Result {
-        double mean, se, variance;
-    };
     auto render = [&](const std::string& material) {
-        LoadedScene loaded = Load(material);
         RenderSettings s = test::Settings("path", 4, test::TestSeed(33));
         s.max_depth = 2;
-        const std::vector<Image> images = test::RenderSeeds(*loaded.scene, s, 8);
-        std::vector<double> means;
-        double variance = 0;
-        for (const Image& im : images) {
-            double sum = 0;
-            for (int y = 0; y < im.height; ++y)
-                for (int x = 0; x < im.width; ++x) sum += im.At(x, y, 1);
-            means.push_back(sum / (im.width * im.height));
-        }
-        for (int y = 0; y < 16; ++y)
-            for (int x = 0; x < 16; ++x) {
-                std::vector<double> v;
-                for (const Image& im : images) v.push_back(im.At(x, y, 1));
-                const test::Estimate e = test::MeanOf(v);
-                variance += e.se * e.se * v.size();
-            }
-        const test::Estimate e = test::MeanOf(means);
-        return Result{e.mean, e.se, variance};
+        return RenderSpread(material, s);
     };
-    const Result factored = render(R"({"type": "measured", "file": "ggx.binary"})");
-    const Result cosine =
+    const Spread factored = render(R"({"type": "measured", "file": "ggx.binary"})");
+    const Spread cosine =
         render(R"({"type": "measured", "file": "ggx.binary", "sampling": "cosine"})");
     EXPECT_NEAR(factored.mean, cosine.mean,
                 4.5 * std::sqrt(factored.se * factored.se + cosine.se * cosine.se));

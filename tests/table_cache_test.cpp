@@ -7,7 +7,6 @@
 #include "scene/table_cache.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -16,15 +15,14 @@
 #include <vector>
 
 #include "core/error.h"
-#include "core/math.h"
 #include "film/image.h"
-#include "io/image_io.h"
 #include "light/structured_sampling.h"
 #include "material/factored_brdf.h"
 #include "material/measured_brdf.h"
 #include "plan/local_runner.h"
 #include "render_compare.h"
 #include "scene/scene_loader.h"
+#include "scene_files.h"
 #include "scene_helpers.h"
 
 namespace tessera {
@@ -32,43 +30,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class TableCacheTest : public testing::Test {
+class TableCacheTest : public test::TempDirTest {
   protected:
     void SetUp() override {
-        dir_ = fs::temp_directory_path() /
-               ("tessera-tables-" + std::to_string(::getpid()) + "-" +
-                testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-        // A sky with a sun, so that the strata are not all alike.
-        Image map;
-        map.width = 64;
-        map.height = 32;
-        map.channels = {"R", "G", "B"};
-        map.pixels.resize(size_t(64) * 32 * 3);
-        for (int y = 0; y < 32; ++y)
-            for (int x = 0; x < 64; ++x)
-                for (int c = 0; c < 3; ++c)
-                    map.At(x, y, c) = (x / 4 == 3 && y / 4 == 2) ? 80.0f : (y < 16 ? 0.6f : 0.1f);
-        WriteExr((dir_ / "sky.exr").string(), map, {});
-        // A glossy GGX lobe (alpha 0.2) over a dim diffuse base.
-        WriteMerlBinary((dir_ / "gloss.binary").string(),
-                        TabulateBrdf([](const Vec3& wo, const Vec3& wi) {
-                            const Vec3 h = Normalize(wo + wi);
-                            const float a2 = 0.04f, c2 = h.z * h.z;
-                            const float d = a2 / (kPi * Sqr(c2 * (a2 - 1) + 1));
-                            return Rgb(0.05f) + Rgb(0.9f, 0.8f, 0.6f) * (d / (4 * wo.z * wi.z));
-                        }));
-        std::ofstream(dir_ / "scene.json") << R"({
-  "camera": {"type": "perspective", "eye": [0, 0.5, 4], "target": [0, 0, 0], "fov": 30},
-  "materials": {"m": {"type": "measured", "file": "gloss.binary"},
-                "floor": {"type": "diffuse", "reflectance": 0.5}},
-  "shapes": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1},
-             {"type": "quad", "material": "floor",
-              "vertices": [[-4, -1, -4], [-4, -1, 4], [4, -1, 4], [4, -1, -4]]}],
-  "lights": [{"type": "environment", "file": "sky.exr", "sampling": "structured", "strata": 24}]
-})";
+        TempDirTest::SetUp();
+        test::WriteSunSkyGlossyScene(dir_);
     }
-    void TearDown() override { fs::remove_all(dir_); }
 
     LoadedScene Load(bool sandboxed = false) {
         RenderOverrides o;
@@ -90,8 +57,6 @@ class TableCacheTest : public testing::Test {
                 return static_cast<const FactoredBrdf*>(t.table.get());
         return nullptr;
     }
-
-    fs::path dir_;
 };
 
 TEST_F(TableCacheTest, SceneListsItsTables) {
