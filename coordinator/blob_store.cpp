@@ -144,6 +144,42 @@ std::unique_ptr<BlobWriter> BlobStore::BeginWrite(const std::string& hash, uint6
     return std::unique_ptr<BlobWriter>(new BlobWriter(*this, hash, size, durability));
 }
 
+bool BlobStore::Touch(const std::string& hash) const {
+    CheckHash(hash);
+    return ::utimensat(AT_FDCWD, PathOf(hash).c_str(), nullptr, 0) == 0;
+}
+
+std::vector<BlobStore::Entry> BlobStore::List() const {
+    std::vector<Entry> entries;
+    const auto now = fs::file_time_type::clock::now();
+    std::error_code ec;
+    for (fs::directory_iterator shard(root_, ec), end; !ec && shard != end; shard.increment(ec)) {
+        if (!shard->is_directory(ec)) continue;
+        for (fs::directory_iterator it(shard->path(), ec); !ec && it != end; it.increment(ec)) {
+            const std::string name = it->path().filename().string();
+            if (!IsSha256Hex(name)) continue;  // temporaries of uploads in progress
+            std::error_code e;
+            const uint64_t size = it->file_size(e);
+            const auto written = it->last_write_time(e);
+            if (e) continue;  // removed meanwhile
+            entries.push_back({name, size, std::chrono::duration<double>(now - written).count()});
+        }
+    }
+    return entries;
+}
+
+bool BlobStore::Remove(const std::string& hash, double min_age_s) const {
+    CheckHash(hash);
+    const std::string path = PathOf(hash);
+    std::error_code ec;
+    const auto written = fs::last_write_time(path, ec);
+    if (ec) return false;
+    const double age =
+        std::chrono::duration<double>(fs::file_time_type::clock::now() - written).count();
+    if (age < min_age_s) return false;
+    return ::unlink(path.c_str()) == 0;
+}
+
 void BlobStore::Materialize(const std::string& hash, const std::string& dest) const {
     CheckHash(hash);
     std::string src = PathOf(hash);
@@ -247,6 +283,7 @@ bool BlobWriter::Commit() {
     }
     if (store_.Has(hash_)) {
         Discard();
+        store_.Touch(hash_);  // in use again: spared by garbage collection for a while
         return false;
     }
     WriteOut(buffer_);

@@ -22,6 +22,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "disk_space.h"
 #include "sha256.h"
@@ -65,6 +66,23 @@ class BlobStore {
     // Places a copy of the blob at `dest` (a hard link where the file system allows,
     // since blobs are never modified); NOT_FOUND if absent.
     void Materialize(const std::string& hash, const std::string& dest) const;
+
+    // Marks the blob as just used (its file's modification time), so that garbage
+    // collection, which spares recent blobs, keeps it a while: done when an upload finds it
+    // already present and when a client asks which blobs are missing, since both mean
+    // that someone is about to rely on it. False if it is absent.
+    bool Touch(const std::string& hash) const;
+
+    // For garbage collection (Coordinator::CollectGarbage): every blob, with its size and
+    // the seconds since it was last written or touched; and removal of a blob that has not
+    // been written or touched for `min_age_s` (false if it was, or is gone).
+    struct Entry {
+        std::string hash;
+        uint64_t size = 0;
+        double age_s = 0;
+    };
+    std::vector<Entry> List() const;
+    bool Remove(const std::string& hash, double min_age_s = 0) const;
 
     uint64_t MaxBlobBytes() const { return max_blob_bytes_; }
     const std::string& Root() const { return root_; }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <unordered_set>
 
 #include "blob_client.h"
 #include "errors.h"
@@ -126,6 +127,8 @@ void Coordinator::SweepLoop() {
     constexpr auto kProbeInterval = std::chrono::seconds(1);
     auto next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
     auto next_probe = std::chrono::steady_clock::now();
+    const auto gc_interval = std::chrono::milliseconds(options_.gc_interval_ms);
+    auto next_gc = std::chrono::steady_clock::now() + gc_interval;
     std::unique_lock lock(sweep_mu_);
     while (!sweep_stop_) {
         sweep_cv_.wait_for(lock, std::chrono::milliseconds(options_.sweep_interval_ms),
@@ -147,8 +150,40 @@ void Coordinator::SweepLoop() {
                 next_checkpoint = std::chrono::steady_clock::now() + kCheckpointInterval;
             }
         }
+        // Also while out of space: what it removes is space.
+        if (options_.gc_interval_ms > 0 && now >= next_gc) {
+            RunPeriodic("blob garbage collection", [this] { CollectGarbage(); });
+            next_gc = std::chrono::steady_clock::now() + gc_interval;
+        }
         lock.lock();
     }
+}
+
+GcStats Coordinator::CollectGarbage() {
+    // A blob that becomes live after the live set is read (a result completed, a job
+    // submitted) was written or touched just now, and the grace period spares it: Remove
+    // looks at its age again right before removing it. (Were it removed in the instant
+    // between, the frame's assembly would find the result missing and run its task again.)
+    const std::vector<std::string> live_hashes = scheduler_.LiveBlobs();
+    const std::vector<BlobStore::Entry> blobs = blobs_.List();
+    const std::unordered_set<std::string> live(live_hashes.begin(), live_hashes.end());
+    GcStats stats;
+    stats.blobs = blobs.size();
+    const double grace_s = options_.gc_grace_ms / 1000.0;
+    for (const BlobStore::Entry& b : blobs) {
+        if (live.count(b.hash)) {
+            ++stats.live;
+        } else if (b.age_s < grace_s) {
+            ++stats.spared;
+        } else if (blobs_.Remove(b.hash, grace_s)) {
+            ++stats.removed;
+            stats.removed_bytes += b.size;
+        }
+    }
+    if (stats.removed > 0)
+        spdlog::info("blob garbage collection: removed {} blobs ({} bytes); {} live, {} recent",
+                     stats.removed, stats.removed_bytes, stats.live, stats.spared);
+    return stats;
 }
 
 std::string Coordinator::SubmitJob(const v1::JobSpec& spec, const TokenLimits& token_limits) {

@@ -50,6 +50,17 @@ struct CoordinatorOptions {
     // After running out of space, the farm resumes once this many bytes are free on the
     // file system that was full.
     uint64_t resume_free_bytes = uint64_t(16) << 20;
+    // Blob garbage collection (CollectGarbage) runs this often; 0 turns it off. It spares
+    // blobs written or touched (BlobStore::Touch) within the grace period: uploads whose
+    // submission or completion has not arrived yet.
+    int gc_interval_ms = 60000;
+    int gc_grace_ms = 10 * 60 * 1000;
+};
+
+// What a garbage collection found and did.
+struct GcStats {
+    size_t blobs = 0, live = 0, spared = 0, removed = 0;
+    uint64_t removed_bytes = 0;
 };
 
 class Coordinator final : public SchedulerListener {
@@ -78,6 +89,12 @@ class Coordinator final : public SchedulerListener {
     v1::JobStatus CancelJob(const std::string& job_id) {
         return Watched([&] { return scheduler_.Cancel(job_id); });
     }
+    // Removes the blobs nothing needs any more (Store::LiveBlobHashes) and that were not
+    // written or touched within options.gc_grace_ms: a written frame's tile results, a
+    // finished stage's task results once the frame is written. Never what an unfinished
+    // frame or any job's bundle needs. Runs by itself every options.gc_interval_ms.
+    GcStats CollectGarbage();
+
     // The EXR (or PNG preview) of a DONE frame; NOT_FOUND otherwise.
     std::string FrameFile(const std::string& job_id, int frame, bool preview);
     WatchHub& Watches() { return watches_; }

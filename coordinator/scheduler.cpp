@@ -856,6 +856,11 @@ std::vector<std::tuple<std::string, int, int>> Scheduler::StagesAwaitingMerge() 
     return out;
 }
 
+std::vector<std::string> Scheduler::LiveBlobs() {
+    std::lock_guard lock(mu_);
+    return store_.LiveBlobHashes();
+}
+
 void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::string& exr_path) {
     const int64_t id = ParseJobId(job_id);
     Events events;

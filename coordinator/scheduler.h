@@ -235,6 +235,8 @@ class Scheduler {
     // --- assembly
     FrameAssemblyInput GetAssemblyInput(const std::string& job_id, int frame);
     void FrameWritten(const std::string& job_id, int frame, const std::string& exr_path);
+    // Store::LiveBlobHashes, read consistently with the scheduler's own writes.
+    std::vector<std::string> LiveBlobs();
     // Sends done tasks of a stage of a frame back to the queue: their results could not
     // be read back at its merge or the frame's assembly. They are leased and run again
     // like new. `tasks` holds (task index in the stage, completion count seen): a task

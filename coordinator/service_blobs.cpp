@@ -192,7 +192,9 @@ class BlobStoreService final : public v1::BlobStore::CallbackService {
                                                             " hashes per call");
             for (const std::string& hash : req->hashes()) {
                 BlobStore::CheckHash(hash);
-                if (!c_.Blobs().Has(hash)) resp->add_missing(hash);
+                // A present blob is about to be relied on (a submission, an upload
+                // skipped): touched, so that garbage collection spares it meanwhile.
+                if (!c_.Blobs().Touch(hash)) resp->add_missing(hash);
             }
         }));
         return reactor;

@@ -395,6 +395,29 @@ std::string Store::GetJobSpec(int64_t job_id) {
     return spec;
 }
 
+std::vector<std::string> Store::LiveBlobHashes() {
+    std::vector<std::string> live;
+    SqliteStatement specs = db_.Prepare("SELECT spec FROM jobs");
+    while (specs.Step()) {
+        v1::JobSpec spec;
+        if (!spec.ParseFromString(specs.Blob(0)))
+            throw std::runtime_error("a stored job spec is corrupt: no blob can be collected");
+        for (const v1::BundleFile& f : spec.files()) live.push_back(f.hash());
+        for (const v1::PrecomputedTable& t : spec.tables()) live.push_back(t.hash());
+    }
+    SqliteStatement results = db_.Prepare(
+        "SELECT t.result_hash FROM tasks t JOIN frames f ON f.job_id = t.job_id AND "
+        "f.frame = t.frame WHERE f.state <> ?1 AND t.result_hash <> ''");
+    results.Bind(int(v1::FRAME_STATE_DONE));
+    while (results.Step()) live.push_back(results.Text(0));
+    SqliteStatement artifacts = db_.Prepare(
+        "SELECT s.artifact_hash FROM stages s JOIN frames f ON f.job_id = s.job_id AND "
+        "f.frame = s.frame WHERE f.state <> ?1 AND s.artifact_hash <> ''");
+    artifacts.Bind(int(v1::FRAME_STATE_DONE));
+    while (artifacts.Step()) live.push_back(artifacts.Text(0));
+    return live;
+}
+
 std::vector<int64_t> Store::JobIds() {
     std::vector<int64_t> ids;
     job_ids_.Bind();

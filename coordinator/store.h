@@ -167,6 +167,10 @@ class Store {
     std::optional<JobRow> GetJob(int64_t job_id);
     std::string GetJobSpec(int64_t job_id);
     std::vector<int64_t> JobIds();
+    // The blobs the farm still needs (blob garbage collection keeps them): every job's
+    // bundle files and precomputed tables, and the task results and merged stage artifacts
+    // of frames not yet written (a written frame's EXR holds what its results made).
+    std::vector<std::string> LiveBlobHashes();
     void SetJobState(int64_t job_id, int state, const std::string& error, int64_t finished_ms);
     // Counts a lease; a QUEUED job becomes RUNNING.
     void CountLease(int64_t job_id, int64_t now_ms);

@@ -685,6 +685,87 @@ TEST_F(CoordinatorTest, StagedPlanEqualsTheLocalRunnerWhateverTheCompletionOrder
     ExpectSameAsLocal((dir_ / "out" / job / "staged.0000.exr").string(), 0, StagedOverrides());
 }
 
+// Blob garbage collection. A written frame's task results go; a job's bundle stays; the
+// task results and merged artifact of a frame still being rendered stay; recent blobs are
+// spared for the grace period.
+TEST_F(CoordinatorTest, GarbageCollectionKeepsWhatUnfinishedFramesNeed) {
+    std::ofstream(scene_path_, std::ios::trunc) << kStagedScene;
+    options_.gc_interval_ms = 0;  // collected by hand below
+    options_.gc_grace_ms = 0;
+    const std::string w = C().Register("w1", 1).worker_id;
+
+    // A path-traced job rendered to the end: its frame is written.
+    v1::JobSpec done_spec = SceneSpec(kStagedScene);
+    const std::string done_job = C().SubmitJob(done_spec);
+    std::vector<std::string> done_results;
+    while (std::optional<LeasedTask> t = LeaseNow(w)) {
+        done_results.push_back(PutBlob(Render(*t)));
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, done_results.back());
+    }
+    ASSERT_EQ(WaitFinished(done_job).state(), v1::JOB_STATE_DONE);
+    ASSERT_FALSE(done_results.empty());
+
+    // A staged job whose photons are merged and whose first irradiance task is done: the
+    // photon batches, their merged map and that task's result are still needed.
+    v1::JobSpec staged_spec = SceneSpec(kStagedScene);
+    *staged_spec.mutable_options() = ToProto(StagedOverrides());
+    const std::string staged_job = C().SubmitJob(staged_spec);
+    loaded_ = LoadedScene();  // Render() loads the scene with the staged job's options
+    std::vector<std::string> staged_results;
+    std::optional<LeasedTask> next;
+    const auto until = std::chrono::steady_clock::now() + 120s;
+    while (std::chrono::steady_clock::now() < until) {
+        next = LeaseNow(w, 100);
+        if (!next) continue;
+        if (next->stage != "photons") break;
+        staged_results.push_back(PutBlob(Render(*next)));
+        C().CompleteTask(w, next->task_id, next->lease_id, next->lease_token,
+                         staged_results.back());
+    }
+    ASSERT_TRUE(next.has_value());
+    ASSERT_EQ(next->stage, "irradiance-1");
+    ASSERT_EQ(next->inputs.size(), 1u);
+    const std::string photon_map = next->inputs[0].hash;
+    staged_results.push_back(PutBlob(Render(*next)));
+    C().CompleteTask(w, next->task_id, next->lease_id, next->lease_token, staged_results.back());
+    // A blob nothing refers to (an upload whose submission never came).
+    const std::string stray = PutBlob("an upload nothing refers to");
+
+    // With a grace period, nothing old enough: everything stays.
+    {
+        options_.gc_grace_ms = 3600 * 1000;
+        Restart();
+        const GcStats st = C().CollectGarbage();
+        EXPECT_EQ(st.removed, 0u);
+        EXPECT_GT(st.spared, 0u);
+        EXPECT_TRUE(C().Blobs().Has(stray));
+    }
+    options_.gc_grace_ms = 0;
+    Restart();
+    const GcStats st = C().CollectGarbage();
+    EXPECT_GT(st.removed, 0u);
+    for (const std::string& h : done_results)
+        EXPECT_FALSE(C().Blobs().Has(h)) << "a written frame's result was kept: " << h;
+    EXPECT_FALSE(C().Blobs().Has(stray));
+    for (const std::string& h : staged_results)
+        EXPECT_TRUE(C().Blobs().Has(h)) << "an unfinished frame's result was removed: " << h;
+    EXPECT_TRUE(C().Blobs().Has(photon_map)) << "the merged photon map was removed";
+    for (const v1::JobSpec* spec : {&done_spec, &staged_spec})
+        for (const v1::BundleFile& f : spec->files())
+            EXPECT_TRUE(C().Blobs().Has(f.hash())) << "a bundle file was removed";
+    // The written frame is still there to fetch, and the staged job still renders to the
+    // local runner's image.
+    EXPECT_FALSE(C().FrameFile(done_job, 0, false).empty());
+    while (true) {
+        RenderAll(w);
+        C().FrameWork().WaitIdle();
+        if (C().GetJob(staged_job).state() != v1::JOB_STATE_RUNNING) break;
+    }
+    ASSERT_EQ(WaitFinished(staged_job).state(), v1::JOB_STATE_DONE);
+    ExpectSameAsLocal((dir_ / "out" / staged_job / "scene.0000.exr").string(), 0,
+                      StagedOverrides());
+}
+
 // Killed after the last photon batch completed, before the merge: the restarted
 // coordinator merges it, and the job goes on without any batch computed again.
 TEST_F(CoordinatorTest, RestartMergesAStageWhoseTasksWereAllDone) {
