@@ -593,7 +593,9 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
     const JobRow job = LoadJob(job_id);
     store_.SetJobState(job_id, state, error, clock_.NowMs());
     store_.DropTasks(job.first_task_id, job.first_task_id + job.tasks_total - 1);
-    if (state == v1::JOB_STATE_FAILED) store_.FailOpenFrames(job_id);
+    // No frame of an ended job stays PENDING or RENDERING.
+    store_.EndOpenFrames(job_id, state == v1::JOB_STATE_FAILED ? v1::FRAME_STATE_FAILED
+                                                               : v1::FRAME_STATE_CANCELLED);
     for (auto it = leases_.begin(); it != leases_.end();) {
         if (it->second.job_id == job_id) {
             spdlog::info("lease {}: task {} revoked ({} ended)", it->second.lease_id, it->first,

@@ -487,8 +487,8 @@ void Store::SetFrameDone(int64_t job_id, int frame, const std::string& exr_path)
     frame_done_.Bind(job_id, frame, int(v1::FRAME_STATE_DONE), exr_path).Run();
 }
 
-void Store::FailOpenFrames(int64_t job_id) {
-    fail_open_frames_.Bind(job_id, int(v1::FRAME_STATE_FAILED), int(v1::FRAME_STATE_DONE)).Run();
+void Store::EndOpenFrames(int64_t job_id, int state) {
+    fail_open_frames_.Bind(job_id, state, int(v1::FRAME_STATE_DONE)).Run();
 }
 
 int Store::CountFramesNotDone(int64_t job_id) {

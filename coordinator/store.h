@@ -184,7 +184,8 @@ class Store {
     int CountFrameTaskDone(int64_t job_id, int frame);
     void SetFrameDone(int64_t job_id, int frame, const std::string& exr_path);
     // Frames not DONE become FAILED.
-    void FailOpenFrames(int64_t job_id);
+    // The job's frames not yet written become `state` (FAILED or CANCELLED).
+    void EndOpenFrames(int64_t job_id, int state);
     int CountFramesNotDone(int64_t job_id);
     // (job id, frame) of frames whose tasks are all done but whose EXR is not written,
     // in running jobs: work left over from a crash.

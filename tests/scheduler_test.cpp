@@ -345,6 +345,10 @@ TEST_F(SchedulerTest, CancellationRevokesLeasesAndStopsLeasing) {
     v1::JobStatus st = S().Cancel(doomed);
     EXPECT_EQ(st.state(), v1::JOB_STATE_CANCELLED);
     EXPECT_GT(st.finished_unix_ms(), 0);
+    // Every frame says so: none is left PENDING or RENDERING.
+    ASSERT_EQ(st.frames_size(), 2);
+    for (const v1::FrameStatus& f : st.frames())
+        EXPECT_EQ(f.state(), v1::FRAME_STATE_CANCELLED) << "frame " << f.frame();
     HeartbeatReply r = S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token);
     EXPECT_FALSE(r.lease_valid);
     EXPECT_TRUE(r.cancelled);
