@@ -18,6 +18,7 @@
 
 #include "bundle.h"
 #include "child_process.h"
+#include "command_line.h"
 #include "farm_commands.h"
 #include "job_options.h"
 
@@ -292,11 +293,11 @@ void AddFarmCommand(CLI::App& app) {
     cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
     cmd->add_option("-o,--output", o->output_dir, "Folder for the frames")->required();
     cmd->add_option("--workers", o->workers, "Worker processes")
-        ->check(CLI::Range(1, 256))
+        ->check(InRange(1, 256))
         ->capture_default_str();
     cmd->add_option("--threads-per-worker", o->threads_per_worker,
                     "Render threads per worker (default: cores / workers)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(AtLeast(0));
     cmd->add_option("--keep-state", o->keep_state,
                     "Keep the coordinator's state, frames and logs in this folder (default: a "
                     "temporary folder, removed unless the job fails)");

@@ -1,10 +1,8 @@
 #include "job_options.h"
 
-#include <spdlog/sinks/stdout_color_sinks.h>
-#include <spdlog/spdlog.h>
-
 #include <filesystem>
 
+#include "command_line.h"
 #include "convert.h"
 #include "frame_list.h"
 #include "scene/scene_records.h"
@@ -13,79 +11,69 @@
 namespace tessera {
 
 void RenderFlags::AddTo(CLI::App& cmd) {
-    cmd.add_option("--spp", spp, "Samples per pixel")->check(CLI::PositiveNumber);
+    cmd.add_option("--spp", spp, "Samples per pixel")->check(AtLeast(1));
     cmd.add_option("--integrator", integrator,
                    "Integrator: path, direct, photon (photon mapping with final gathering), "
                    "irradiance-cache (path-traced direct light, cached indirect light), "
                    "light (light tracing: paths from the lights, splatted onto the film), "
                    "bdpt (bidirectional path tracing with MIS) or mlt (Metropolis light "
                    "transport)")
-        ->check(CLI::IsMember(
-            {"path", "direct", "photon", "irradiance-cache", "light", "bdpt", "mlt"}));
+        ->check(OneOf({"path", "direct", "photon", "irradiance-cache", "light", "bdpt", "mlt"}));
     cmd.add_flag("--irradiance-cache", irradiance_cache,
                  "photon: put the final gather behind an irradiance cache");
     cmd.add_option("--photons", photons, "photon: photons stored in the global map")
-        ->check(CLI::NonNegativeNumber);
+        ->check(AtLeast(0));
     cmd.add_option("--caustic-photons", caustic_photons,
                    "photon: photons stored in the caustic map")
-        ->check(CLI::NonNegativeNumber);
+        ->check(AtLeast(0));
     cmd.add_option("--photon-batches", photon_batches, "photon: photon-shooting tasks")
-        ->check(CLI::Range(1, 4096));
+        ->check(InRange(1, 4096));
     cmd.add_option("--ic-accuracy", ic_accuracy,
                    "Irradiance cache: Ward's a (smaller: more records, less error)")
-        ->check(CLI::PositiveNumber);
+        ->check(GreaterThan(0.0f));
     cmd.add_option("--ic-samples", ic_samples, "Irradiance cache: hemisphere rays per record")
-        ->check(CLI::Range(4, 1 << 20));
+        ->check(InRange(4, 1 << 20));
     cmd.add_option("--ic-passes", ic_passes,
                    "Irradiance cache: coarse-to-fine passes before rendering")
-        ->check(CLI::Range(0, 8));
+        ->check(InRange(0, 8));
     cmd.add_flag("--no-gradients", no_gradients,
                  "Irradiance cache: interpolate without the irradiance gradients");
     cmd.add_option("--debug", debug,
                    "Debug image: photons (the photon maps drawn), records (cache record "
                    "positions), indirect (indirect light only)")
-        ->check(CLI::IsMember({"none", "photons", "records", "indirect"}));
+        ->check(OneOf({"none", "photons", "records", "indirect"}));
     cmd.add_option(
            "--sampler", sampler,
            "Pixel sampler: sobol (Owen-scrambled Sobol, the default), stratified or independent")
-        ->check(CLI::IsMember(SamplerTypeNames()));
+        ->check(OneOf(SamplerTypeNames()));
     cmd.add_option("--time-sampler", time_sampler,
                    "How a pixel's samples spread over the shutter: stratified (a space-time "
                    "pattern, the default), sampler (the pixel sampler's own time dimension) "
                    "or independent (uniform random times)")
-        ->check(CLI::IsMember({"stratified", "sampler", "independent"}));
+        ->check(OneOf({"stratified", "sampler", "independent"}));
     cmd.add_option("--filter", filter,
                    "Pixel filter: box, gaussian, mitchell or tent, at its default radius "
                    "(replaces the scene's filter when the type differs)")
-        ->check(CLI::IsMember({"box", "gaussian", "mitchell", "tent"}));
+        ->check(OneOf({"box", "gaussian", "mitchell", "tent"}));
     cmd.add_option("--filter-sampling", filter_sampling,
                    "How samples reach pixels: splat (weighted into every pixel the filter "
                    "covers) or importance (offsets drawn from the filter, one pixel each)")
-        ->check(CLI::IsMember({"splat", "importance"}));
-    cmd.add_option("--max-depth", max_depth, "Maximum path length in bounces")
-        ->check(CLI::NonNegativeNumber);
+        ->check(OneOf({"splat", "importance"}));
+    cmd.add_option("--max-depth", max_depth, "Maximum path length in bounces")->check(AtLeast(0));
     cmd.add_option("--seed", seed, "Seed of every random stream");
-    cmd.add_option("--tile-size", tile_size, "Tile edge in pixels")->check(CLI::PositiveNumber);
+    cmd.add_option("--tile-size", tile_size, "Tile edge in pixels")->check(AtLeast(1));
     cmd.add_option("--light-paths-per-task", light_paths_per_task,
                    "Light tracing and BDPT: light paths per splat task (default 1048576)")
-        ->check(CLI::Range(1, 1 << 30));
+        ->check(InRange(1, 1 << 30));
     cmd.add_option("--mlt-bootstrap", mlt_bootstrap, "MLT: bootstrap states per path length")
-        ->check(CLI::Range(1, 1 << 30));
+        ->check(InRange(1, 1 << 30));
     cmd.add_option("--mlt-chains", mlt_chains, "MLT: independent Markov chains")
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(InRange(1, 1 << 20));
     cmd.add_option("--p-large", p_large, "MLT: probability of a large step (default 0.3)")
-        ->check(CLI::Validator(
-            [](const std::string& text) -> std::string {
-                float p = 0;
-                if (!CLI::detail::lexical_cast(text, p) || !(p > 0 && p <= 1))
-                    return "must be in (0, 1], got " + text;
-                return "";
-            },
-            "(0, 1]"));
-    cmd.add_option("--width", width, "Image width (overrides the scene)")
-        ->check(CLI::Range(1, 16384));
+        ->check(AboveAndAtMost(0.0f, 1.0f));
+    cmd.add_option("--width", width, "Image width (overrides the scene)")->check(InRange(1, 16384));
     cmd.add_option("--height", height, "Image height (overrides the scene)")
-        ->check(CLI::Range(1, 16384));
+        ->check(InRange(1, 16384));
 }
 
 RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
@@ -99,9 +87,9 @@ RenderOverrides RenderFlags::Overrides(const CLI::App& cmd) const {
     if (cmd.count("--seed")) o.seed = seed;
     if (cmd.count("--integrator")) o.integrator = integrator;
     if (cmd.count("--sampler"))
-        o.sampler = ParseSamplerType(sampler).value();  // checked by --sampler's IsMember
+        o.sampler = ParseSamplerType(sampler).value();  // checked by --sampler's OneOf
     if (cmd.count("--time-sampler"))
-        o.time_sampler = ParseTimeSampler(time_sampler).value();  // checked by IsMember
+        o.time_sampler = ParseTimeSampler(time_sampler).value();  // checked by OneOf
     if (cmd.count("--filter")) o.filter = ParseFilterType(filter);
     if (cmd.count("--filter-sampling")) o.filter_sampling = ParseFilterSampling(filter_sampling);
     if (cmd.count("--irradiance-cache")) o.irradiance_cache = true;
@@ -160,17 +148,8 @@ CLI::Option* AddFramesOption(CLI::App& cmd, std::string& frames) {
 }
 
 void AddCoordinatorOption(CLI::App& cmd, CoordinatorEndpoint& endpoint) {
-    cmd.add_option("--coordinator", endpoint.address, "The coordinator's HOST:PORT")
-        ->envname("TESSERA_COORDINATOR")
-        ->required();
+    AddCoordinatorAddressOption(cmd, endpoint.address);
     AddClientSecurityOptions(cmd, endpoint.security);
-}
-
-void LogToStderr() {
-    if (spdlog::get("tessera")) return;
-    auto logger = spdlog::stderr_color_mt("tessera");
-    logger->set_pattern("%^%l%$: %v");
-    spdlog::set_default_logger(logger);
 }
 
 SceneClock ReadSceneClock(const std::string& scene) {

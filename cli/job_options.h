@@ -45,13 +45,9 @@ struct JobOptions {
 // --frames LIST (frame_list.h's syntax) into `frames`, checked as it is parsed.
 CLI::Option* AddFramesOption(CLI::App& cmd, std::string& frames);
 
-// --coordinator HOST:PORT, or $TESSERA_COORDINATOR, and how to reach it securely
+// --coordinator HOST[:PORT], or $TESSERA_COORDINATOR, and how to reach it securely
 // (security_options.h: --tls-ca, --token-file, ...).
 void AddCoordinatorOption(CLI::App& cmd, CoordinatorEndpoint& endpoint);
-
-// Sends log lines (and the errors main() prints) to stderr: stdout carries only results
-// that scripts read, such as the job id that `submit` prints.
-void LogToStderr();
 
 // A scene's frame rate and the frames its animation section names ([0, 0] without one):
 // what renders when no --frames is given, and the movie preview's rate without --fps.

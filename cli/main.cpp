@@ -1,13 +1,16 @@
-// The `tessera` command line.
+// The `tessera` command line. Exit statuses: 0 done, 1 an error, 2 a usage error or a
+// scene or output that is refused before rendering, 3 and 4 a job that failed or was
+// cancelled, 130 interrupted (command_line.h, farm_commands.h).
 
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <exception>
 
+#include "command_line.h"
 #include "core/error.h"
 #include "farm_commands.h"
-#include "job_options.h"
+#include "logging.h"
 #include "render_command.h"
 #include "security_commands.h"
 #include "strata_command.h"
@@ -15,8 +18,8 @@
 int main(int argc, char** argv) {
     CLI::App app{"Tessera: a tile-based Monte Carlo renderer and render farm"};
     app.require_subcommand(1);
-    // Logs and errors go to stderr: stdout carries only results (job ids, paths).
-    tessera::LogToStderr();
+    tessera::SetUpLogging("tessera");
+    tessera::AddVersionFlag(app, "tessera");
     tessera::AddRenderCommand(app);
     tessera::AddSubmitCommand(app);
     tessera::AddJobCommands(app);
@@ -25,12 +28,12 @@ int main(int argc, char** argv) {
     tessera::AddTokenCommand(app);
     tessera::AddStrataCommand(app);
     try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // The commands run inside the parse, as its callbacks.
+        if (std::optional<int> status = tessera::ParseCommandLine(app, "tessera", argc, argv))
+            return *status;
     } catch (const tessera::SceneError& e) {
         spdlog::error("{}", e.what());
-        return 2;
+        return tessera::kExitUsage;
     } catch (const std::exception& e) {
         spdlog::error("{}", e.what());
         return 1;

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "child_process.h"
+#include "command_line.h"
 
 namespace tessera {
 
@@ -54,7 +55,7 @@ std::string ReadText(const fs::path& path) {
 
 void MovieFlags::AddTo(CLI::App& cmd) {
     cmd.add_option("--fps", fps, "Frames per second of the MP4 movie preview")
-        ->check(CLI::Range(0.1, 1000.0))
+        ->check(InRange(0.1, 1000.0))
         ->capture_default_str();
     cmd.add_flag("--no-movie", no_movie,
                  "No MP4 movie preview (<name>.mp4, made with ffmpeg from the PNG previews "

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 
+#include "command_line.h"
 #include "core/error.h"
 #include "frame_list.h"
 #include "integrator/integrator.h"
@@ -244,10 +245,9 @@ void AddRenderCommand(CLI::App& app) {
                     "beside it, same stem)")
         ->required();
     o->render.AddTo(*cmd);
-    cmd->add_option("--threads", o->threads, "Render threads (0: all cores)")
-        ->check(CLI::NonNegativeNumber);
-    CLI::Option* frame = cmd->add_option("--frame", o->frame, "Frame number (animation)")
-                             ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--threads", o->threads, "Render threads (0: all cores)")->check(AtLeast(0));
+    CLI::Option* frame =
+        cmd->add_option("--frame", o->frame, "Frame number (animation)")->check(AtLeast(0));
     AddFramesOption(*cmd, o->frames)
         ->excludes(frame)
         ->description(
@@ -262,7 +262,7 @@ void AddRenderCommand(CLI::App& app) {
                   "OUT.strategies/");
     cmd->add_option("--strategy-length", o->strategy_length,
                     "bdpt: the longest paths (bounces) given strategy images of their own")
-        ->check(CLI::Range(0, 16));
+        ->check(InRange(0, 16));
     cmd->add_flag("-q,--quiet", o->quiet, "No progress display");
     cmd->callback([o, cmd] { RunRender(*o, *cmd); });
 }

@@ -23,6 +23,7 @@
 #include <stdexcept>
 
 #include "certificates.h"
+#include "command_line.h"
 #include "security.h"
 
 namespace tessera {
@@ -73,7 +74,7 @@ void AddCommonCertOptions(CLI::App& cmd, CertOptions& o, int days) {
         ->required();
     cmd.add_option("--days", o.days, "Days the certificate is valid")
         ->capture_default_str()
-        ->check(CLI::Range(1, 36500));
+        ->check(InRange(1, 36500));
     cmd.add_flag("--force", o.force, "Replace existing files");
 }
 
@@ -157,20 +158,19 @@ void AddTokenCommand(CLI::App& app) {
         "token for the client or worker (--out, else stdout)");
     cmd->add_option("--role", o->role, "client (submit, watch, cancel, fetch) or worker")
         ->required()
-        ->check(CLI::IsMember({"client", "worker"}));
+        ->check(OneOf({"client", "worker"}));
     cmd->add_option("--name", o->name, "Who holds it (shown in the coordinator's log)")->required();
     cmd->add_option("--tokens", o->tokens, "The coordinator's token file (appended to)")
         ->required();
     cmd->add_option("--out", o->out, "Write the token here (mode 0600) for --token-file");
     cmd->add_flag("--force", o->force, "Replace --out if it exists");
-    cmd->add_option("--max-spp", o->max_spp, "Client limit: samples per pixel")
-        ->check(CLI::PositiveNumber);
+    cmd->add_option("--max-spp", o->max_spp, "Client limit: samples per pixel")->check(AtLeast(1));
     cmd->add_option("--max-resolution", o->max_resolution, "Client limit: pixels per axis")
-        ->check(CLI::PositiveNumber);
+        ->check(AtLeast(1));
     cmd->add_option("--max-frames", o->max_frames, "Client limit: frames per job")
-        ->check(CLI::PositiveNumber);
+        ->check(AtLeast(1));
     cmd->add_option("--max-priority", o->max_priority, "Client limit: highest job priority")
-        ->check(CLI::Range(-1000, 1000));
+        ->check(InRange(-1000, 1000));
     cmd->callback([o] {
         for (char c : o->name)
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-')

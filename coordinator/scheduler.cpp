@@ -263,7 +263,7 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         out->spec = info->spec;
         out->deadline_ms = now + options_.lease_ms;
         out->inputs = inputs;
-        spdlog::info("lease {}: task {} ({} frame {} {} {}, attempt {}) to worker '{}'", lease_id,
+        spdlog::debug("lease {}: task {} ({} frame {} {} {}, attempt {}) to worker '{}'", lease_id,
                      task->id, job_id, task->frame, task->stage, task->task_index, out->attempt,
                      worker.name);
         if (job_state == v1::JOB_STATE_QUEUED) {
@@ -469,7 +469,7 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         txn.Commit();
         leases_.erase(task_id);
         worker.failures_in_a_row = 0;
-        spdlog::info("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
+        spdlog::debug("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
                      lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
                      worker.name, stage_done, stage.num_tasks);
         events.push_back(
@@ -541,7 +541,7 @@ void Scheduler::Release(int64_t task_id, int64_t lease_id) {
         SqliteTransaction txn(store_.Db());
         store_.ReleaseTask(task_id, lease_id, it->second.job_id);
         txn.Commit();
-        spdlog::info("lease {}: task {} given back unused (the worker left)", lease_id, task_id);
+        spdlog::debug("lease {}: task {} given back unused (the worker left)", lease_id, task_id);
         leases_.erase(it);
     }
     Emit({{Event::kWork, "", ""}});
@@ -598,7 +598,7 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
                                                                : v1::FRAME_STATE_CANCELLED);
     for (auto it = leases_.begin(); it != leases_.end();) {
         if (it->second.job_id == job_id) {
-            spdlog::info("lease {}: task {} revoked ({} ended)", it->second.lease_id, it->first,
+            spdlog::debug("lease {}: task {} revoked ({} ended)", it->second.lease_id, it->first,
                          FormatJobId(job_id));
             it = leases_.erase(it);
         } else {

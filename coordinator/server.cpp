@@ -3,10 +3,13 @@
 #include <grpcpp/ext/health_check_service_server_builder_option.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <netdb.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -41,6 +44,54 @@ void WritePortFile(const std::string& path, int port) {
     std::filesystem::rename(temp, path);
 }
 
+// The host and port of "host:port" or "[v6]:port"; false for other gRPC addresses
+// ("unix:path", "dns:///host:port").
+bool SplitHostPort(const std::string& listen, std::string* host, std::string* port) {
+    if (listen.find('/') != std::string::npos || listen.rfind("unix", 0) == 0) return false;
+    const size_t colon = listen.rfind(':');
+    if (colon == std::string::npos) return false;
+    *host = listen.substr(0, colon);
+    *port = listen.substr(colon + 1);
+    if (host->size() >= 2 && host->front() == '[' && host->back() == ']')
+        *host = host->substr(1, host->size() - 2);
+    return true;
+}
+
+// Why the coordinator cannot listen on `listen`, found by binding its address as gRPC
+// does (SO_REUSEADDR, no SO_REUSEPORT), or "" when nothing stands in the way. gRPC
+// itself only says that it failed.
+std::string ListenProblem(const std::string& listen) {
+    std::string host, port;
+    if (!SplitHostPort(listen, &host, &port) || port == "0") return {};
+    addrinfo hints{};
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_PASSIVE;
+    addrinfo* found = nullptr;
+    if (int rc = getaddrinfo(host.empty() ? nullptr : host.c_str(), port.c_str(), &hints, &found);
+        rc != 0)
+        return fmt::format("cannot listen on {}: {}", listen, gai_strerror(rc));
+    const std::string where = host.empty() ? "every address" : host;
+    std::string problem;
+    for (addrinfo* a = found; a && problem.empty(); a = a->ai_next) {
+        const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
+        if (fd < 0) continue;
+        const int one = 1;
+        ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+        const int error = ::bind(fd, a->ai_addr, a->ai_addrlen) == 0 ? 0 : errno;
+        ::close(fd);
+        if (error == EADDRINUSE)
+            problem = fmt::format("port {} on {} is in use by another process", port, where);
+        else if (error == EACCES)
+            problem = fmt::format("cannot listen on {}: permission denied", listen);
+        else if (error == EADDRNOTAVAIL)
+            problem = fmt::format("cannot listen on {}: {} is not an address of this machine",
+                                  listen, host);
+    }
+    freeaddrinfo(found);
+    return problem;
+}
+
 }  // namespace
 
 void BlockShutdownSignals() {
@@ -65,6 +116,11 @@ int RunServer(const ServerOptions& options) {
         spdlog::critical("{}", e.what());
         return 1;
     }
+    // Before the state is opened: a coordinator started twice must not touch it.
+    if (std::string problem = ListenProblem(options.listen); !problem.empty()) {
+        spdlog::critical("{}", problem);
+        return 1;
+    }
     if (auth.Enabled())
         spdlog::info("tokens: {} client, {} worker (from {})", auth.Count(Role::kClient),
                      auth.Count(Role::kWorker), options.security.tokens_file);
@@ -87,6 +143,9 @@ int RunServer(const ServerOptions& options) {
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort(options.listen, credentials, &port);
+    // gRPC sets SO_REUSEPORT by default, so that a second coordinator on the same port
+    // would share it with the first, each answering some of the calls.
+    builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
     builder.SetMaxReceiveMessageSize(kMaxMessageBytes);
     builder.SetMaxSendMessageSize(kMaxMessageBytes);
     builder.RegisterService(farm.get());
@@ -95,8 +154,9 @@ int RunServer(const ServerOptions& options) {
     coordinator->Start();
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) {
-        spdlog::critical("cannot listen on {} (address in use, or not a valid host:port)",
-                         options.listen);
+        std::string problem = ListenProblem(options.listen);
+        if (problem.empty()) problem = "cannot listen on " + options.listen;
+        spdlog::critical("{}", problem);
         if (server) server->Shutdown();
         coordinator->StopWaiting();
         coordinator->Stop();

@@ -21,9 +21,11 @@ struct ServerOptions {
 // it); RunServer waits for them. Call first thing in main().
 void BlockShutdownSignals();
 
-// Serves until SIGTERM/SIGINT; returns the process exit code (non-zero, with a logged
-// reason, if the state cannot be opened, the address cannot be bound, or the security
-// settings are unsafe or unreadable: see CheckListenSecurity).
+// Serves until SIGTERM/SIGINT; returns the process exit code: non-zero, with a logged
+// reason, if the address cannot be bound (a port that another process listens on is
+// refused before the state is opened: "port 50051 on 127.0.0.1 is in use by another
+// process"), the state cannot be opened, or the security settings are unsafe or
+// unreadable (see CheckListenSecurity).
 int RunServer(const ServerOptions& options);
 
 }  // namespace tessera

@@ -77,6 +77,9 @@ Completions ReadCompletions(const fs::path& db_path, int64_t job_id) {
     return c;
 }
 
+// The coordinators log each lease and completion at debug level.
+const std::vector<std::string> kDebugLog = {"--log-level", "debug"};
+
 // Completions per task id as the coordinators' logs (one per start) report them.
 std::map<int64_t, int> LoggedCompletions(const fs::path& dir, const std::string& state) {
     static const std::regex kCompleted(R"(lease \d+: task (\d+) \(.*\) completed by worker)");
@@ -133,7 +136,7 @@ TEST_F(ChaosTest, RandomKillsOfWorkersAndCoordinatorLeaveTheImagesUnchanged) {
     std::mt19937 rng(seed);
 
     Process* coordinator = nullptr;
-    const int port = StartCoordinator("state", 0, kLeaseMs, &coordinator);
+    const int port = StartCoordinator("state", 0, kLeaseMs, &coordinator, kDebugLog);
     ASSERT_GT(port, 0);
     std::vector<Slot> workers(kWorkers);
     for (int i = 0; i < kWorkers; ++i) {
@@ -180,7 +183,7 @@ TEST_F(ChaosTest, RandomKillsOfWorkersAndCoordinatorLeaveTheImagesUnchanged) {
                 coordinator->Kill(SIGKILL);
                 ++coordinator_restarts;
                 // The same state and port: the workers find it again by themselves.
-                ASSERT_EQ(StartCoordinator("state", port, kLeaseMs, &coordinator), port);
+                ASSERT_EQ(StartCoordinator("state", port, kLeaseMs, &coordinator, kDebugLog), port);
                 // The events left are judged against the restarted coordinator's count.
                 break;
             }

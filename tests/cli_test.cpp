@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -37,11 +38,13 @@ class CliTest : public ::testing::Test {
 
     // Runs the CLI with `args`; returns its exit status and keeps stdout in out_ and
     // stderr in err_.
-    int Run(const std::string& args) {
+    int Run(const std::string& args) { return RunProgram(TESSERA_CLI, args); }
+
+    // The same for another program (a command line: it may start with variables to set).
+    int RunProgram(const std::string& program, const std::string& args) {
         std::string out_path = (dir_ / "stdout.txt").string();
         std::string err_path = (dir_ / "stderr.txt").string();
-        std::string cmd =
-            std::string(TESSERA_CLI) + " " + args + " >" + out_path + " 2>" + err_path;
+        std::string cmd = program + " " + args + " >" + out_path + " 2>" + err_path;
         int status = std::system(cmd.c_str());
         out_ = ReadFile(out_path);
         err_ = ReadFile(err_path);
@@ -660,6 +663,118 @@ TEST_F(CliTest, StrataRefusesBadOptionsBeforeReadingTheMap) {
     EXPECT_FALSE(fs::exists(out));
     EXPECT_FALSE(fs::exists(dir_ / "out.jpg"));
     EXPECT_FALSE(fs::exists(dir_ / "missing"));
+}
+
+// --- usage errors, --version -------------------------------------------------------------
+
+// The farm's programs, built beside `tessera` (build/cli/tessera: build/coordinator/...,
+// build/worker/...). The command lines end with `timeout`: a program that took a usage
+// error for a valid command line would otherwise run until killed.
+const fs::path kBuildDir = fs::path(TESSERA_CLI).parent_path().parent_path();
+const std::string kCoordinator =
+    "timeout 60 " + (kBuildDir / "coordinator" / "tessera-coordinator").string();
+const std::string kWorker = "timeout 60 " + (kBuildDir / "worker" / "tessera-worker").string();
+
+bool Has(const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+}
+
+TEST_F(CliTest, MisspeltCommandIsAUsageErrorWithASuggestion) {
+    EXPECT_EQ(Run("rendr " + kFurnace + " -o " + (dir_ / "x.exr").string()), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown command 'rendr'; did you mean 'render'?")) << err_;
+    EXPECT_FALSE(Has(err_, "unknown command '" + kFurnace)) << "its arguments are not: " << err_;
+    EXPECT_EQ(Run("cert sever --dir " + dir_.string()), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown command 'sever'; did you mean 'server'?")) << err_;
+    // Nothing close: no suggestion.
+    EXPECT_EQ(Run("xyzzy"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown command 'xyzzy'")) << err_;
+    EXPECT_FALSE(Has(err_, "did you mean")) << err_;
+    EXPECT_EQ(Run(""), 2) << err_;
+    EXPECT_TRUE(Has(err_, "a command is required: render, ")) << err_;
+}
+
+TEST_F(CliTest, MisspeltOptionIsAUsageErrorWithASuggestion) {
+    const std::string out = " -o " + (dir_ / "x.exr").string();
+    EXPECT_EQ(Run("render " + kFurnace + out + " --spd 4"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown option '--spd'; did you mean '--spp'?")) << err_;
+    // Its value is not reported as a stray argument of its own.
+    EXPECT_FALSE(Has(err_, "'4'")) << err_;
+    // Before the scene: the value must not be taken for the scene file.
+    EXPECT_EQ(Run("render --spd 4 " + kFurnace + out), 2) << err_;
+    EXPECT_TRUE(Has(err_, "did you mean '--spp'?")) << err_;
+    EXPECT_EQ(Run("render " + kFurnace + out + " -spp 4"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "did you mean '--spp'?")) << err_;
+    EXPECT_EQ(Run("render " + kFurnace + out + " --integrator bdtp"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "got 'bdtp'; did you mean 'bdpt'?")) << err_;
+    EXPECT_EQ(Run("render " + kFurnace + out + " --frobnicate"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown option '--frobnicate'")) << err_;
+    EXPECT_FALSE(Has(err_, "did you mean")) << err_;
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+}
+
+TEST_F(CliTest, RangeErrorsSayWhatIsWanted) {
+    const std::string render = "render " + kFurnace + " -q -o " + (dir_ / "x.exr").string();
+    EXPECT_EQ(Run(render + " --spp 0"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--spp must be at least 1, got 0")) << err_;
+    for (const char* raw : {"e+308", "e308", "1797693", "0.000000", "not in range"})
+        EXPECT_FALSE(Has(err_, raw)) << raw << ": " << err_;
+    EXPECT_EQ(Run(render + " --width 0"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--width must be from 1 to 16384, got 0")) << err_;
+    EXPECT_EQ(Run(render + " --threads -1"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--threads must be at least 0, got -1")) << err_;
+    EXPECT_EQ(Run(render + " --p-large 1.5"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--p-large must be greater than 0 and at most 1, got 1.5")) << err_;
+    EXPECT_EQ(Run(render + " --spp many"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--spp must be a whole number")) << err_;
+    // Nor does --help show CLI11's bounds.
+    ASSERT_EQ(Run("render --help"), 0);
+    for (const char* raw : {"e+308", "POSITIVE", "NONNEGATIVE"})
+        EXPECT_FALSE(Has(out_, raw)) << raw << ": " << out_;
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+}
+
+TEST_F(CliTest, EveryProgramPrintsTheSameVersion) {
+    const std::regex version(
+        R"(^(tessera|tessera-coordinator|tessera-worker) (\d+\.\d+\.\d+\S*)\n$)");
+    std::string first;
+    for (const auto& [program, name] :
+         std::vector<std::pair<std::string, std::string>>{{TESSERA_CLI, "tessera"},
+                                                          {kCoordinator, "tessera-coordinator"},
+                                                          {kWorker, "tessera-worker"}}) {
+        ASSERT_EQ(RunProgram(program, "--version"), 0) << program << ": " << err_;
+        std::smatch m;
+        ASSERT_TRUE(std::regex_match(out_, m, version)) << program << ": " << out_;
+        EXPECT_EQ(m[1], name);
+        if (first.empty()) first = m[2];
+        EXPECT_EQ(m[2], first) << program;
+    }
+}
+
+TEST_F(CliTest, CoordinatorAndWorkerUsageErrorsExitTwo) {
+    const std::string state =
+        " --state " + (dir_ / "state").string() + " --output " + (dir_ / "frames").string();
+    EXPECT_EQ(RunProgram(kCoordinator, state + " --lisen 127.0.0.1:0"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown option '--lisen'; did you mean '--listen'?")) << err_;
+    EXPECT_EQ(RunProgram(kCoordinator, state + " --lease-ms 5"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--lease-ms must be from 100 to 86400000, got 5")) << err_;
+    EXPECT_EQ(RunProgram(kCoordinator, state + " --max-spp 0"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--max-spp must be at least 1, got 0")) << err_;
+    EXPECT_EQ(RunProgram(kCoordinator, state + " --listen 127.0.0.1:99999"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "not a port number")) << err_;
+    EXPECT_EQ(RunProgram(kCoordinator, "--output " + (dir_ / "frames").string()), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--state is required")) << err_;
+    EXPECT_FALSE(fs::exists(dir_ / "state"));
+
+    const std::string worker = "env -u TESSERA_COORDINATOR " + kWorker;
+    EXPECT_EQ(RunProgram(worker, ""), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--coordinator is required (or $TESSERA_COORDINATOR)")) << err_;
+    EXPECT_EQ(RunProgram(worker, "--coordinater 127.0.0.1:1"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "unknown option '--coordinater'; did you mean '--coordinator'?")) << err_;
+    EXPECT_EQ(RunProgram(worker, "--coordinator 127.0.0.1:1 --threads 0"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "--threads must be from 1 to 1024, got 0")) << err_;
+    EXPECT_EQ(RunProgram(worker, "--coordinator 127.0.0.1:1 --thread 2"), 2) << err_;
+    EXPECT_TRUE(Has(err_, "did you mean '--threads'?")) << err_;
+    for (const char* raw : {"e+308", "not in range"}) EXPECT_FALSE(Has(err_, raw)) << err_;
 }
 
 }  // namespace

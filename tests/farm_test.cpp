@@ -16,12 +16,13 @@
 #include <thread>
 #include <vector>
 
+#include "command_line.h"
 #include "farm_harness.h"
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
-#include "sha256.h"
 #include "scene_files.h"
+#include "sha256.h"
 
 namespace tessera {
 namespace {
@@ -783,6 +784,72 @@ TEST_F(FarmTest, CoordinatorKilledBetweenStagesKeepsTheMergedStages) {
     // perhaps once more each if the restart outlived a lease): no batch nor pass again.
     EXPECT_LE(after.leases_granted(), after.tasks_total() + 2 * kWorkers);
     ExpectSameImage(RenderLocal(args), Download(s, job_id, 0));
+}
+
+// A second coordinator on the port the first one listens on refuses to start, before it
+// opens its state, and says why (gRPC's default SO_REUSEPORT would let both listen, each
+// answering some of the calls); the first goes on serving.
+TEST_F(FarmTest, SecondCoordinatorOnATakenPortRefusesToStart) {
+    Process* first = nullptr;
+    const int port = StartCoordinator("first", 0, 0, &first);
+    ASSERT_GT(port, 0);
+    Process& second =
+        Start({TESSERA_COORDINATOR, "--listen", "127.0.0.1:" + std::to_string(port), "--state",
+               (dir_ / "second").string(), "--output", (dir_ / "second-frames").string()},
+              "second");
+    const int code = second.Wait(120s);
+    EXPECT_NE(code, -1) << "the second coordinator is still running";
+    EXPECT_NE(code, 0);
+    const std::string log = ReadFile(dir_ / "second.log");
+    EXPECT_NE(
+        log.find("port " + std::to_string(port) + " on 127.0.0.1 is in use by another process"),
+        std::string::npos)
+        << log;
+    EXPECT_FALSE(fs::exists(dir_ / "second" / "tessera.db")) << "its state was opened";
+
+    ASSERT_TRUE(first->Running());
+    StartWorker(port, "w1");
+    Stubs s(port);
+    const std::string job_id = SubmitCornell(s, kSmall);
+    v1::JobStatus last;
+    EXPECT_TRUE(WaitDone(s, job_id, &last));
+}
+
+// A worker given no --coordinator takes $TESSERA_COORDINATOR, as the CLI does.
+TEST_F(FarmTest, WorkerTakesTheCoordinatorFromTheEnvironment) {
+    const int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    std::vector<std::string> worker = WorkerArgv(port, "from-env");
+    ASSERT_EQ(worker.at(1), "--coordinator");
+    worker.erase(worker.begin() + 1, worker.begin() + 3);
+    // Set for the worker alone, through env(1): the test's own environment stays as it is.
+    worker.insert(worker.begin(), {"/usr/bin/env", "-u", "TESSERA_COORDINATOR",
+                                   "TESSERA_COORDINATOR=127.0.0.1:" + std::to_string(port)});
+    Start(worker, "from-env");
+    Stubs s(port);
+    const std::string job_id = SubmitCornell(s, kSmall);
+    v1::JobStatus last;
+    EXPECT_TRUE(WaitDone(s, job_id, &last)) << ReadFile(dir_ / "from-env.log");
+    Ctx ctx;
+    v1::ListWorkersResponse workers;
+    ASSERT_TRUE(s.farm->ListWorkers(&ctx, v1::ListWorkersRequest(), &workers).ok());
+    ASSERT_EQ(workers.workers_size(), 1);
+    EXPECT_EQ(workers.workers(0).name(), "from-env");
+}
+
+// A coordinator address without a port means port 50051, for the worker and the CLI.
+TEST(CoordinatorAddress, HostAloneMeansTheDefaultPort) {
+    EXPECT_EQ(WithDefaultPort("farm.example.com"), "farm.example.com:50051");
+    EXPECT_EQ(WithDefaultPort("127.0.0.1"), "127.0.0.1:50051");
+    EXPECT_EQ(WithDefaultPort("127.0.0.1:7000"), "127.0.0.1:7000");
+    EXPECT_EQ(WithDefaultPort("127.0.0.1:0"), "127.0.0.1:0");
+    EXPECT_EQ(WithDefaultPort("[::1]"), "[::1]:50051");
+    EXPECT_EQ(WithDefaultPort("::1"), "[::1]:50051");
+    EXPECT_EQ(WithDefaultPort("[::1]:7000"), "[::1]:7000");
+    EXPECT_EQ(WithDefaultPort("unix:/run/tessera.sock"), "unix:/run/tessera.sock");
+    EXPECT_EQ(WithDefaultPort("dns:///farm:7000"), "dns:///farm:7000");
+    for (const char* bad : {"", "farm:", "farm:http", "farm:70000", "[::1", "[::1]7000"})
+        EXPECT_THROW(WithDefaultPort(bad), std::invalid_argument) << bad;
 }
 
 }  // namespace

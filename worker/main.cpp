@@ -1,10 +1,11 @@
 // tessera-worker: leases tile tasks from a coordinator and renders them with the engine.
 //
-//   tessera-worker --coordinator HOST:PORT [--threads N] [--name NAME] [--cache DIR]
+//   tessera-worker --coordinator HOST[:PORT] [--threads N] [--name NAME] [--cache DIR]
 //
+// The address may also come from $TESSERA_COORDINATOR; port 50051 if it names none.
 // SIGTERM or SIGINT: stop leasing, finish and complete the tasks in flight, exit 0.
 // A second signal exits at once (the coordinator re-queues the tasks when their leases
-// expire).
+// expire), with status 1, as does an error; a usage error exits 2 (command_line.h).
 
 #include <fcntl.h>
 #include <grpcpp/grpcpp.h>
@@ -21,6 +22,8 @@
 #include <string>
 #include <thread>
 
+#include "command_line.h"
+#include "logging.h"
 #include "security.h"
 #include "security_options.h"
 #include "worker.h"
@@ -109,38 +112,40 @@ int main(int argc, char** argv) {
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
+    tessera::SetUpLogging("tessera-worker");  // named once the command line names the worker
+
     // With no call waiting on the channel, gRPC notices a finished connection attempt only
     // when its backup poller runs (every 5 s by default): a worker retrying fail-fast calls
     // would see a restarted coordinator seconds late. An explicit setting wins.
     setenv("GRPC_CLIENT_CHANNEL_BACKUP_POLL_INTERVAL_MS", "100", 0);
 
     CLI::App app{"Tessera render worker: leases tile tasks from a coordinator and renders them"};
+    tessera::AddVersionFlag(app, "tessera-worker");
     std::string coordinator, name = DefaultName(), cache;
     tessera::WorkerOptions options;
     options.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     bool verbose = false;
-    app.add_option("--coordinator", coordinator, "Coordinator address, HOST:PORT")->required();
+    tessera::AddCoordinatorAddressOption(app, coordinator);
     app.add_option("--threads", options.threads, "Tasks rendered at once, one thread each")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1024));
+        ->check(tessera::InRange(1, 1024));
     app.add_option("--name", name, "Worker name, unique among live workers (default hostname-pid)");
     app.add_option("--cache", cache,
                    "Cache folder for blobs and bundles (default $TMPDIR/tessera-worker-NAME, "
                    "removed at exit unless --name is given)");
     app.add_option("--lease-wait-ms", options.lease_wait_ms, "Long-poll time of a lease request")
         ->capture_default_str()
-        ->check(CLI::Range(100, 60000));
+        ->check(tessera::InRange(100, 60000));
     app.add_option("--cached-jobs", options.cached_jobs, "Jobs whose scenes stay loaded")
         ->capture_default_str()
         ->check(CLI::Range(1, 64));
     app.add_flag("-v,--verbose", verbose, "Debug logging");
     tessera::ClientSecurityFlags security;
     tessera::AddClientSecurityOptions(app, security);
-    CLI11_PARSE(app, argc, argv);
+    if (std::optional<int> status = tessera::ParseCommandLine(app, "tessera-worker", argc, argv))
+        return *status;
 
-    std::string tag = name;
-    for (size_t at = 0; (at = tag.find('%', at)) != std::string::npos; at += 2) tag.insert(at, "%");
-    spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e [%l] [worker " + tag + "] %v");
+    tessera::SetUpLogging("tessera-worker", name);
     if (verbose) spdlog::set_level(spdlog::level::debug);
 
     try {
