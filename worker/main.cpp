@@ -138,7 +138,16 @@ int main(int argc, char** argv) {
         ->check(tessera::InRange(100, 60000));
     app.add_option("--cached-jobs", options.cached_jobs, "Jobs whose scenes stay loaded")
         ->capture_default_str()
-        ->check(CLI::Range(1, 64));
+        ->check(tessera::InRange(size_t(1), size_t(64)));
+    app.add_option("--blob-cache-size", options.blob_cache_bytes,
+                   "Disk budget of the blob cache, e.g. 2GiB (least recently used blobs are "
+                   "deleted beyond it; those of loaded jobs are kept)")
+        ->capture_default_str()
+        ->transform(CLI::AsSizeValue(false));
+    app.add_option("--artifact-cache-size", options.artifact_cache_bytes,
+                   "Memory budget of decoded photon maps and irradiance caches, e.g. 2GiB")
+        ->capture_default_str()
+        ->transform(CLI::AsSizeValue(false));
     app.add_flag("-v,--verbose", verbose, "Debug logging");
     tessera::ClientSecurityFlags security;
     tessera::AddClientSecurityOptions(app, security);

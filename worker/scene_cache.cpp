@@ -24,17 +24,48 @@ namespace {
 // it here keeps a bad job from exhausting the worker's memory.
 constexpr int64_t kMaxTiles = int64_t(1) << 22;
 
+// What a decoded artifact takes in memory, from the size of its encoding: its records
+// take about as much decoded as encoded (a photon is 48 bytes either way), and their
+// search structures (kd-tree, octree) and a photon map's precomputed irradiance map (a
+// quarter as many photons again) less than as much again.
+uint64_t EstimateArtifactBytes(size_t encoded) { return 2 * uint64_t(encoded) + 4096; }
+
+using ArtifactKey = std::pair<int, std::string>;  // (stage, blob hash)
+using ArtifactFuture = std::shared_future<std::shared_ptr<const Artifact>>;
+
+bool Ready(const ArtifactFuture& f) {
+    return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+}
+
+// Whether a task holds the loaded artifact besides the cache. Exact with the job's mutex
+// held: GetArtifact copies a loaded artifact out under it.
+bool InUse(const ArtifactFuture& f) {
+    try {
+        return f.get().use_count() > 1;
+    } catch (...) {
+        return false;  // a failed load, about to be erased by its loader
+    }
+}
+
 }  // namespace
 
-// A frame's renderer and the artifacts loaded for it, by (stage, blob hash).
+struct SceneCache::ArtifactEntry {
+    ArtifactFuture artifact;
+    uint64_t load_id = 0;    // tells this load from another of the same key
+    uint64_t bytes = 0;      // estimated, once loaded
+    uint64_t last_used = 0;  // SceneCache::artifact_clock_
+};
+
+// A frame's renderer and the artifacts loaded for it.
 struct SceneCache::FrameEntry {
     int frame = 0;
     std::shared_ptr<const FrameRenderer> renderer;
-    std::map<std::pair<int, std::string>, std::shared_future<std::shared_ptr<const Artifact>>>
-        artifacts;
+    std::map<ArtifactKey, ArtifactEntry> artifacts;
 };
 
 struct SceneCache::Job {
+    // Pins on the bundle's blobs, whose files the job's bundle folder links.
+    std::vector<BlobPin> blob_pins;
     // The tables the coordinator made for the job (table_cache.h), kept installed while
     // the job is loaded, so that its animated frames' scenes find them too.
     std::shared_ptr<const void> tables;
@@ -94,11 +125,12 @@ std::string Fingerprint(const v1::JobSpec& spec) {
 }  // namespace
 
 SceneCache::SceneCache(fs::path jobs_dir, const BlobCache& blobs, size_t max_jobs,
-                       size_t max_frames)
+                       size_t max_frames, uint64_t max_artifact_bytes)
     : jobs_dir_(std::move(jobs_dir)),
       blobs_(blobs),
       max_jobs_(std::max<size_t>(1, max_jobs)),
-      max_frames_(std::max<size_t>(1, max_frames)) {
+      max_frames_(std::max<size_t>(1, max_frames)),
+      max_artifact_bytes_(max_artifact_bytes) {
     fs::create_directories(jobs_dir_);
 }
 
@@ -143,24 +175,31 @@ std::shared_ptr<const Artifact> SceneCache::GetArtifact(const std::string& job_i
     std::shared_ptr<Job> job = GetJob(job_id, spec);
     std::shared_ptr<const FrameRenderer> renderer;
     std::promise<std::shared_ptr<const Artifact>> promise;
-    const std::pair<int, std::string> key(stage, hash);
+    const ArtifactKey key(stage, hash);
+    const uint64_t load_id = ++artifact_clock_;
     {
         std::unique_lock lock(job->mutex);
         FrameEntry& entry = FrameLocked(*job, frame, max_frames_);
         auto it = entry.artifacts.find(key);
         if (it != entry.artifacts.end()) {
-            std::shared_future<std::shared_ptr<const Artifact>> loading = it->second;
+            it->second.last_used = load_id;
+            ArtifactFuture loading = it->second.artifact;
+            // Copied out under the lock, so that eviction sees it in use from now on.
+            if (Ready(loading)) return loading.get();
             lock.unlock();
             return loading.get();  // waits for a load in progress; rethrows its error
         }
-        entry.artifacts.emplace(key, promise.get_future().share());
+        entry.artifacts.emplace(key,
+                                ArtifactEntry{promise.get_future().share(), load_id, 0, load_id});
         renderer = entry.renderer;
     }
     // This call loads it; calls for it that come meanwhile wait on the future.
+    std::shared_ptr<const Artifact> artifact;
+    size_t encoded_bytes = 0;
     try {
         const auto start = std::chrono::steady_clock::now();
         std::string data = bytes();
-        std::shared_ptr<const Artifact> artifact;
+        encoded_bytes = data.size();
         try {
             artifact = renderer->LoadArtifact(stage, data);
         } catch (const std::exception& e) {
@@ -173,7 +212,6 @@ std::shared_ptr<const Artifact> SceneCache::GetArtifact(const std::string& job_i
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count());
         promise.set_value(artifact);
-        return artifact;
     } catch (...) {
         promise.set_exception(std::current_exception());
         std::lock_guard lock(job->mutex);
@@ -182,10 +220,102 @@ std::shared_ptr<const Artifact> SceneCache::GetArtifact(const std::string& job_i
         for (FrameEntry& entry : job->frames) {
             auto it = entry.artifacts.find(key);
             if (entry.frame == frame && it != entry.artifacts.end() &&
-                it->second.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
+                it->second.load_id == load_id)
                 entry.artifacts.erase(it);
         }
         throw;
+    }
+    {
+        std::lock_guard lock(job->mutex);
+        // Not there if the frame was dropped meanwhile.
+        if (ArtifactEntry* e = FindArtifactLocked(*job, frame, key, load_id))
+            e->bytes = EstimateArtifactBytes(encoded_bytes);
+    }
+    EvictArtifacts();  // `artifact` is held here: never the one dropped
+    return artifact;
+}
+
+SceneCache::ArtifactEntry* SceneCache::FindArtifactLocked(Job& job, int frame,
+                                                          const ArtifactKey& key,
+                                                          uint64_t load_id) {
+    for (FrameEntry& entry : job.frames) {
+        if (entry.frame != frame) continue;
+        auto it = entry.artifacts.find(key);
+        if (it != entry.artifacts.end() && it->second.load_id == load_id) return &it->second;
+    }
+    return nullptr;
+}
+
+std::vector<std::shared_ptr<SceneCache::Job>> SceneCache::LoadedJobs() const {
+    std::lock_guard lock(mutex_);
+    std::vector<std::shared_ptr<Job>> jobs;
+    for (const Slot& s : slots_) {
+        if (s.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
+        try {
+            jobs.push_back(s.job.get());
+        } catch (...) {
+            // A failed load, about to be erased by its loader.
+        }
+    }
+    return jobs;
+}
+
+uint64_t SceneCache::ArtifactBytes() const {
+    uint64_t bytes = 0;
+    for (const std::shared_ptr<Job>& job : LoadedJobs()) {
+        std::lock_guard lock(job->mutex);
+        for (const FrameEntry& entry : job->frames)
+            for (const auto& [key, a] : entry.artifacts) bytes += a.bytes;
+    }
+    return bytes;
+}
+
+void SceneCache::EvictArtifacts() {
+    std::lock_guard evicting(evict_artifacts_mutex_);
+    // Few artifacts are held (jobs x frames x stages): each round looks at them all and
+    // drops the least recently used one that no task holds.
+    for (;;) {
+        uint64_t held = 0;
+        std::shared_ptr<Job> oldest_job;
+        int oldest_frame = 0;
+        ArtifactKey oldest_key;
+        uint64_t oldest_id = 0, oldest_use = 0;
+        for (const std::shared_ptr<Job>& job : LoadedJobs()) {
+            std::lock_guard lock(job->mutex);
+            for (const FrameEntry& entry : job->frames) {
+                for (const auto& [key, a] : entry.artifacts) {
+                    held += a.bytes;
+                    if (!Ready(a.artifact) || InUse(a.artifact)) continue;
+                    if (oldest_job && a.last_used >= oldest_use) continue;
+                    oldest_job = job;
+                    oldest_frame = entry.frame;
+                    oldest_key = key;
+                    oldest_id = a.load_id;
+                    oldest_use = a.last_used;
+                }
+            }
+        }
+        if (held <= max_artifact_bytes_ || !oldest_job) {
+            const bool over = held > max_artifact_bytes_;
+            if (over && !warned_artifacts_over_)
+                spdlog::warn(
+                    "decoded artifacts in use take about {} bytes, over their budget of {} "
+                    "bytes; the excess goes once their tasks finish",
+                    held, max_artifact_bytes_);
+            warned_artifacts_over_ = over;
+            return;
+        }
+        std::lock_guard lock(oldest_job->mutex);
+        for (FrameEntry& entry : oldest_job->frames) {
+            auto it = entry.artifacts.find(oldest_key);
+            // Looked at again: a task may have taken it since.
+            if (entry.frame != oldest_frame || it == entry.artifacts.end() ||
+                it->second.load_id != oldest_id || InUse(it->second.artifact))
+                continue;
+            spdlog::info("frame {}: dropping a decoded artifact (about {} bytes) from the cache",
+                         oldest_frame, it->second.bytes);
+            entry.artifacts.erase(it);
+        }
     }
 }
 
@@ -273,8 +403,9 @@ std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
                                                      const v1::JobSpec& spec) const {
     auto start = std::chrono::steady_clock::now();
     fs::path scene_path;
+    std::vector<BlobPin> pins;
     try {
-        scene_path = MaterializeBundle(blobs_, jobs_dir_ / job_id, spec);
+        scene_path = MaterializeBundle(blobs_, jobs_dir_ / job_id, spec, &pins);
     } catch (const BlobFetchError& e) {
         throw BlobFetchError(fmt::format("fetching the scene bundle failed: {}", e.what()),
                              e.Transient());
@@ -282,6 +413,7 @@ std::shared_ptr<SceneCache::Job> SceneCache::LoadJob(const std::string& job_id,
         throw std::runtime_error(fmt::format("fetching the scene bundle failed: {}", e.what()));
     }
     auto job = std::make_shared<Job>();
+    job->blob_pins = std::move(pins);
     job->tables = InstallJobTables(job_id, spec);
     const uint64_t made_before = StrataTables().Made() + FactoredTables().Made();
     try {
@@ -313,8 +445,8 @@ std::shared_ptr<const void> SceneCache::InstallJobTables(const std::string& job_
     try {
         std::vector<EncodedTable> tables;
         for (const v1::PrecomputedTable& t : spec.tables()) {
-            const fs::path path = blobs_.Ensure(t.hash(), t.size());
-            std::ifstream in(path, std::ios::binary);
+            const BlobPin blob = blobs_.Ensure(t.hash(), t.size());
+            std::ifstream in(blob.Path(), std::ios::binary);
             std::string bytes((std::istreambuf_iterator<char>(in)),
                               std::istreambuf_iterator<char>());
             if (!in.good() && !in.eof()) throw std::runtime_error("cannot read blob " + t.hash());

@@ -82,16 +82,19 @@ Worker::Worker(WorkerOptions options, v1::Workers::StubInterface& workers,
     options_.threads = std::max(1, options_.threads);
     // Bundles of a previous run are stale; blobs are content-addressed and stay valid.
     fs::remove_all(options_.cache_dir / "jobs");
-    blob_cache_ =
-        std::make_unique<BlobCache>(options_.cache_dir / "blobs", [this](const std::string& hash) {
+    blob_cache_ = std::make_unique<BlobCache>(
+        options_.cache_dir / "blobs",
+        [this](const std::string& hash) {
             try {
                 return DownloadBlob(blobs_, hash);
             } catch (const std::exception& e) {
                 throw BlobFetchError(e.what(), IsTransientText(e.what()));
             }
-        });
+        },
+        options_.blob_cache_bytes);
     scene_cache_ = std::make_unique<SceneCache>(options_.cache_dir / "jobs", *blob_cache_,
-                                                options_.cached_jobs);
+                                                options_.cached_jobs, /*max_frames=*/4,
+                                                options_.artifact_cache_bytes);
 }
 
 Worker::~Worker() = default;

@@ -57,6 +57,12 @@ struct WorkerOptions {
     std::filesystem::path cache_dir;  // blobs/ and jobs/ live here
     int lease_wait_ms = 10000;        // long poll of LeaseTask
     size_t cached_jobs = 2;           // jobs whose scenes stay loaded
+    // Bytes of blobs kept in <cache_dir>/blobs (least recently used deleted beyond it;
+    // blobs of loaded jobs and reads in progress are kept even over it).
+    uint64_t blob_cache_bytes = kDefaultBlobCacheBytes;
+    // Estimated bytes of decoded artifacts (photon maps, irradiance caches) kept in memory
+    // (least recently used dropped beyond it; those tasks hold are kept even over it).
+    uint64_t artifact_cache_bytes = kDefaultArtifactCacheBytes;
     // Called before retrying after UNAVAILABLE: lets the channel connect at once rather
     // than on its own (slower) reconnect schedule, so that our backoff is the one in force.
     std::function<void()> reset_connection;
