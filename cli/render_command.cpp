@@ -37,32 +37,34 @@ struct RenderOptions {
     MovieFlags movie;
     bool strategy_images = false;
     int strategy_length = 5;
+    bool exr = false;  // with a .png, .jpg, ... -o: also the full EXR beside it
 };
 
 namespace fs = std::filesystem;
 
-// A render's two files, with the same stem: the EXR (every channel, the metadata: the
-// float data is never lost to a display format) and an RGB image in the format that -o
-// asks for, or a PNG preview when -o names the EXR. -o's own file is never the preview.
+// A render's files, with the same stem: -o decides by its extension. An EXR (every
+// channel, the metadata) gets a PNG preview beside it; -o's own file is never the preview.
+// Any other format is written alone, and the EXR beside it only when asked (--exr).
 struct OutputFiles {
-    std::string exr;
+    std::string exr;  // empty: none
     std::string rgb;
     ImageFormat rgb_format = ImageFormat::kPng;
 };
 
-OutputFiles PlanOutputs(const std::string& output) {
+OutputFiles PlanOutputs(const std::string& output, bool want_exr) {
     const std::optional<ImageFormat> format = FormatFromPath(output);
     if (!format)
         throw SceneError("", fmt::format("-o {}: unknown image extension; use one of {}", output,
                                          SupportedImageExtensions()));
     if (*format == ImageFormat::kExr)
         return {output, fs::path(output).replace_extension(".png").string(), ImageFormat::kPng};
-    return {fs::path(output).replace_extension(".exr").string(), output, *format};
+    return {want_exr ? fs::path(output).replace_extension(".exr").string() : std::string(), output,
+            *format};
 }
 
 // Refuses, before anything is rendered, outputs that could only fail once it is done.
 void CheckOutputs(const OutputFiles& files) {
-    fs::path folder = fs::path(files.exr).parent_path();
+    fs::path folder = fs::path(files.rgb).parent_path();
     if (folder.empty()) folder = ".";
     std::error_code ec;
     if (!fs::exists(folder, ec))
@@ -72,7 +74,7 @@ void CheckOutputs(const OutputFiles& files) {
     if (::access(folder.c_str(), W_OK | X_OK) != 0)
         throw SceneError("", fmt::format("output folder {} is not writable", folder.string()));
     for (const std::string& path : {files.exr, files.rgb})
-        if (fs::is_directory(path, ec))
+        if (!path.empty() && fs::is_directory(path, ec))
             throw SceneError("", fmt::format("output path {} is a directory", path));
 }
 
@@ -80,6 +82,7 @@ void CheckOutputs(const OutputFiles& files) {
 // "out/cornell.exr" -> "out/cornell.0007.exr".
 OutputFiles NumberedOutputs(const OutputFiles& files, int frame) {
     auto numbered = [frame](const std::string& path) {
+        if (path.empty()) return path;
         fs::path p(path);
         return p.replace_extension(fmt::format(".{:04d}{}", frame, p.extension().string()))
             .string();
@@ -192,12 +195,14 @@ void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
     ImageMetadata meta = FrameMetadata(s, seconds);
     meta["tessera:scene"] = std::filesystem::path(o.scene).filename().string();
     // The EXR first: should the other file fail, the float data is already safe.
-    WriteExr(files.exr, image, meta);
+    if (!files.exr.empty()) WriteExr(files.exr, image, meta);
     WriteRgbImage(files.rgb, image, files.rgb_format);
     double samples = double(res.x) * res.y * s.spp;
-    spdlog::info("wrote {} and {} in {:.2f} s ({:.0f} samples/s, {:.2f} Mrays/s)", files.exr,
-                 files.rgb, seconds, samples / seconds, rays / seconds * 1e-6);
-    if (o.strategy_images) WriteStrategyImages(*loaded.scene, s, o, files.exr);
+    spdlog::info("wrote {}{}{} in {:.2f} s ({:.0f} samples/s, {:.2f} Mrays/s)", files.exr,
+                 files.exr.empty() ? "" : " and ", files.rgb, seconds, samples / seconds,
+                 rays / seconds * 1e-6);
+    if (o.strategy_images)
+        WriteStrategyImages(*loaded.scene, s, o, files.exr.empty() ? files.rgb : files.exr);
 }
 
 void RunRender(RenderOptions& o, CLI::App& cmd) {
@@ -214,7 +219,7 @@ void RunRender(RenderOptions& o, CLI::App& cmd) {
         for (int f = clock.frame_start; f <= clock.frame_end; ++f) frames.push_back(f);
     }
     if (cmd.count("--fps") == 0) o.movie.fps = clock.fps;
-    const OutputFiles files = PlanOutputs(o.output);
+    const OutputFiles files = PlanOutputs(o.output, o.exr);
     CheckOutputs(files);
     RenderOverrides overrides = o.render.Overrides(cmd);
     // Numbered files whenever a list is asked for, so that the names do not depend on
@@ -240,10 +245,13 @@ void AddRenderCommand(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("render", "Render a scene locally (no server) to images");
     cmd->add_option("scene", o->scene, "Scene file (JSON)")->required()->check(CLI::ExistingFile);
     cmd->add_option("-o,--output", o->output,
-                    "Output image, format by extension: .exr (a PNG preview is written beside "
-                    "it), or .png, .jpg, .jpeg, .tif, .tiff, .hdr (the full EXR is written "
-                    "beside it, same stem)")
+                    "Output image, format by extension: .exr (every channel and the metadata; a "
+                    "PNG preview is written beside it), or .png, .jpg, .jpeg, .tif, .tiff, .hdr "
+                    "(that image alone; --exr for the full EXR beside it)")
         ->required();
+    cmd->add_flag("--exr", o->exr,
+                  "With a .png, .jpg, .tif or .hdr -o: also write the full EXR (every channel, "
+                  "the metadata) beside it, same stem");
     o->render.AddTo(*cmd);
     cmd->add_option("--threads", o->threads, "Render threads (0: all cores)")->check(AtLeast(0));
     CLI::Option* frame =

@@ -115,17 +115,27 @@ void ExpectFullExr(const fs::path& path) {
     EXPECT_EQ(meta["tessera:spp"], "1");
 }
 
-TEST_F(CliTest, PngOutputIsAPngWithTheExrBesideIt) {
+// -o decides the format by extension: a PNG or JPEG alone, the EXR beside it only when
+// asked for with --exr.
+TEST_F(CliTest, PngOutputIsAPngAloneUnlessTheExrIsAskedFor) {
     ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.png").string() + kTiny)) << err_;
     EXPECT_EQ(Head(dir_ / "x.png", 8), kPngMagic);
-    ExpectFullExr(dir_ / "x.exr");
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "y.png").string() + " --exr" + kTiny))
+        << err_;
+    EXPECT_EQ(Head(dir_ / "y.png", 8), kPngMagic);
+    ExpectFullExr(dir_ / "y.exr");
 }
 
-TEST_F(CliTest, JpegOutputIsAJpegWithTheExrBesideIt) {
+TEST_F(CliTest, JpegOutputIsAJpegAloneUnlessTheExrIsAskedFor) {
     ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "x.jpg").string() + kTiny)) << err_;
     EXPECT_EQ(Head(dir_ / "x.jpg", 3), kJpegMagic);
-    ExpectFullExr(dir_ / "x.exr");
+    EXPECT_FALSE(fs::exists(dir_ / "x.exr"));
     EXPECT_FALSE(fs::exists(dir_ / "x.png"));
+    ASSERT_EQ(0, Run("render " + kFurnace + " -o " + (dir_ / "y.jpg").string() + " --exr" + kTiny))
+        << err_;
+    ExpectFullExr(dir_ / "y.exr");
+    EXPECT_FALSE(fs::exists(dir_ / "y.png"));
 }
 
 TEST_F(CliTest, ExrOutputHasAPngPreviewBesideIt) {
@@ -172,8 +182,8 @@ TEST_F(CliTest, OutputPathThatIsADirectoryIsRefused) {
     int status = Run("render " + kFurnace + " -o " + (dir_ / "taken.exr").string() + kTiny);
     ExpectRefused(status, err_, "output path " + (dir_ / "taken.exr").string() + " is a directory",
                   dir_);
-    // The file beside -o counts too: -o x.png also writes x.exr.
-    status = Run("render " + kFurnace + " -o " + (dir_ / "taken.png").string() + kTiny);
+    // The file beside -o counts too: -o taken.png --exr also writes taken.exr.
+    status = Run("render " + kFurnace + " -o " + (dir_ / "taken.png").string() + " --exr" + kTiny);
     ExpectRefused(status, err_, "is a directory", dir_);
 }
 
@@ -556,7 +566,7 @@ TEST_F(CliTest, OneFrameAsAListIsNumberedAndMakesNoMovie) {
                      " --frames 3 --spp 1 --width 8 --height 6 -q"))
         << err_;
     EXPECT_EQ(Head(dir_ / "y.0003.png", 8), kPngMagic);
-    EXPECT_EQ(Head(dir_ / "y.0003.exr", 4), kExrMagic);
+    EXPECT_FALSE(fs::exists(dir_ / "y.0003.exr"));  // -o y.png without --exr
     EXPECT_FALSE(fs::exists(dir_ / "y.png"));
     EXPECT_FALSE(fs::exists(dir_ / "y.mp4"));
 }
