@@ -11,6 +11,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <memory>
+#include <mutex>
 #include <set>
 #include <string>
 
@@ -20,7 +22,10 @@ namespace tessera {
 
 class JobProgress {
   public:
+    // On a terminal the bar is redrawn every second, also while no event arrives (an
+    // idle farm's job says "waiting for workers" with its time running).
     explicit JobProgress(bool quiet, std::FILE* out = stderr);
+    ~JobProgress();
     // Shows the job as of `status`, printing what is new since the last call.
     void Update(const v1::JobStatus& status);
     // A line of its own (above the bar on a terminal).
@@ -30,6 +35,7 @@ class JobProgress {
 
   private:
     void PrintLine(const std::string& line);
+    void DrawLocked();
     std::string ProgressText(const v1::JobStatus& status) const;
     // "photons 12/16" (prefixed by the frame when the job has several), or empty.
     static std::string CurrentStage(const v1::JobStatus& status);
@@ -45,8 +51,14 @@ class JobProgress {
     int last_frames_done_ = -1;
     std::string last_stage_;  // frame and stage of the last plain line
     v1::JobState last_state_ = v1::JOB_STATE_UNSPECIFIED;
+    double samples_at_start_ = 0;
     std::set<std::string> failures_seen_;
     std::set<int> frames_done_;
+    v1::JobStatus last_;  // what the terminal bar shows
+    bool have_last_ = false;
+    bool finished_ = false;
+    std::mutex mu_;
+    std::unique_ptr<Ticker> ticker_;  // last: stopped before the rest goes
 };
 
 }  // namespace tessera

@@ -162,11 +162,15 @@ void RenderFrame(const RenderOptions& o, const RenderOverrides& overrides,
         progress = [&](const StagePlan& stage, int done, int total) {
             if (!bar || bar_stage != stage.name) {
                 if (bar) bar->Finish();
-                bar = std::make_unique<ProgressBar>(stage.label, total, stderr,
-                                                    stage.task_kind == TaskKind::kTile ? "tiles"
-                                                    : stage.task_kind == TaskKind::kSplat
-                                                        ? "bands"
-                                                        : "batches");
+                // The render stage's tasks stand for the frame's camera samples.
+                const double samples =
+                    stage.kind == StageKind::kRender ? double(res.x) * res.y * s.spp : 0;
+                bar =
+                    std::make_unique<ProgressBar>(stage.label, total, stderr,
+                                                  stage.task_kind == TaskKind::kTile    ? "tiles"
+                                                  : stage.task_kind == TaskKind::kSplat ? "bands"
+                                                                                        : "batches",
+                                                  samples);
                 bar_stage = stage.name;
             }
             bar->Update(done);

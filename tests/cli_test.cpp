@@ -157,6 +157,42 @@ void ExpectRefused(int status, const std::string& err, const std::string& why,
     EXPECT_TRUE(written.empty()) << written.front();
 }
 
+// On a terminal the bar fits its width and shows samples/s. The render (a second or more)
+// runs under script(1), which gives it a pseudo-terminal of 72 columns.
+TEST_F(CliTest, ProgressBarFitsTheTerminalAndShowsSamplesPerSecond) {
+    const fs::path typescript = dir_ / "typescript.txt";
+    const std::string command = "stty cols 72 rows 20; " + std::string(TESSERA_CLI) + " render " +
+                                std::string(TESSERA_SOURCE_DIR) +
+                                "/scenes/cornell-box/scene.json -o " + (dir_ / "bar.exr").string() +
+                                " --spp 64 --width 96 --height 96 --tile-size 16 --threads 1";
+    const std::string script =
+        "script -qfec '" + command + "' " + typescript.string() + " > /dev/null 2>&1 < /dev/null";
+    ASSERT_EQ(std::system(script.c_str()), 0) << script;
+    std::ifstream in(typescript);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    int bars = 0;
+    bool rate = false;
+    std::string line;
+    for (size_t i = 0; i <= text.size(); ++i) {
+        if (i == text.size() || text[i] == '\r' || text[i] == '\n') {
+            // A redraw: "\033[K" then the bar.
+            if (line.rfind("\033[K", 0) == 0) {
+                const std::string bar = line.substr(3);
+                if (bar.rfind("render", 0) == 0) {
+                    ++bars;
+                    EXPECT_LE(bar.size(), 72u) << bar;
+                    rate = rate || bar.find("samples/s") != std::string::npos;
+                }
+            }
+            line.clear();
+        } else {
+            line += text[i];
+        }
+    }
+    EXPECT_GE(bars, 36) << text;  // one per tile at least
+    EXPECT_TRUE(rate) << text;
+}
+
 TEST_F(CliTest, UnknownExtensionIsRefusedBeforeRendering) {
     int status = Run("render " + kFurnace + " -o " + (dir_ / "x.bmp").string() + kTiny);
     ExpectRefused(status, err_, "unknown image extension", dir_);

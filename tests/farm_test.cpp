@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cstdio>
 #include <fstream>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -153,6 +154,37 @@ TEST_F(FarmTest, PrecomputedTablesAreShippedToWorkers) {
     ExpectSameImage(local, out / "tables.0000.exr");
     const std::string log = ReadFile(dir_ / "only.log");
     EXPECT_NE(log.find("2 precomputed tables, 0 tables made here"), std::string::npos) << log;
+}
+
+// `watch` of a job no worker takes: on a terminal (script(1) gives it one) the bar says
+// "waiting for workers" and keeps being redrawn, its elapsed time running, although no
+// event arrives.
+TEST_F(FarmTest, WatchOfAnIdleFarmSaysWaitingForWorkersAndTicks) {
+    const int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    const std::string address = "127.0.0.1:" + std::to_string(port);
+    CliResult submit = Cli(Concat({"submit", kCornell, "--coordinator", address}, kSmall));
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    const std::string job_id = Trim(submit.out);
+    const fs::path typescript = dir_ / "watch.typescript";
+    const std::string command = "stty cols 160 rows 20; timeout 3.5 " + std::string(TESSERA_CLI) +
+                                " watch " + job_id + " --coordinator " + address;
+    const std::string script =
+        "script -qfc '" + command + "' " + typescript.string() + " > /dev/null 2>&1 < /dev/null";
+    std::system(script.c_str());  // ended by timeout
+    const std::string text = ReadFile(typescript);
+    std::set<std::string> elapsed;
+    size_t at = 0;
+    int redraws = 0;
+    while ((at = text.find("waiting for workers", at)) != std::string::npos) {
+        ++redraws;
+        const size_t e = text.find("elapsed ", at);
+        if (e != std::string::npos)
+            elapsed.insert(text.substr(e, text.find_first_of("\r\n", e) - e));
+        ++at;
+    }
+    EXPECT_GE(redraws, 2) << text;
+    EXPECT_GE(elapsed.size(), 2u) << "the line froze: " << text;
 }
 
 // Light tracing on the farm: its render stage is made of splat tasks (here 16 bands of
