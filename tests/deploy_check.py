@@ -1055,7 +1055,7 @@ def check_shellcheck(root):
         raise Skipped("shellcheck is not installed")
     scripts = [os.path.join(root, "deploy", p) for p in
                ("setup.sh", "docker-entrypoint.sh", "runtime-packages.sh", "make-secrets.sh",
-                os.path.join("slurm", "tessera-workers.sbatch"))]
+                "build-image.sh", os.path.join("slurm", "tessera-workers.sbatch"))]
     scripts = [s for s in scripts if os.path.exists(s)]
     out = subprocess.run([tool, "-S", "warning"] + scripts, capture_output=True, text=True,
                          timeout=60)
