@@ -264,8 +264,8 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         out->deadline_ms = now + options_.lease_ms;
         out->inputs = inputs;
         spdlog::debug("lease {}: task {} ({} frame {} {} {}, attempt {}) to worker '{}'", lease_id,
-                     task->id, job_id, task->frame, task->stage, task->task_index, out->attempt,
-                     worker.name);
+                      task->id, job_id, task->frame, task->stage, task->task_index, out->attempt,
+                      worker.name);
         if (job_state == v1::JOB_STATE_QUEUED) {
             spdlog::info("job {} '{}' is running", job_id, info->name);
             events.push_back({Event::kJob, job_id, "job running"});
@@ -470,8 +470,8 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         leases_.erase(task_id);
         worker.failures_in_a_row = 0;
         spdlog::debug("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
-                     lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
-                     worker.name, stage_done, stage.num_tasks);
+                      lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
+                      worker.name, stage_done, stage.num_tasks);
         events.push_back(
             {Event::kJob, job_id,
              fmt::format("{} task {} of frame {} done", stage.name, task.task_index, task.frame)});
@@ -594,12 +594,12 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
     store_.SetJobState(job_id, state, error, clock_.NowMs());
     store_.DropTasks(job.first_task_id, job.first_task_id + job.tasks_total - 1);
     // No frame of an ended job stays PENDING or RENDERING.
-    store_.EndOpenFrames(job_id, state == v1::JOB_STATE_FAILED ? v1::FRAME_STATE_FAILED
-                                                               : v1::FRAME_STATE_CANCELLED);
+    store_.EndOpenFrames(
+        job_id, state == v1::JOB_STATE_FAILED ? v1::FRAME_STATE_FAILED : v1::FRAME_STATE_CANCELLED);
     for (auto it = leases_.begin(); it != leases_.end();) {
         if (it->second.job_id == job_id) {
             spdlog::debug("lease {}: task {} revoked ({} ended)", it->second.lease_id, it->first,
-                         FormatJobId(job_id));
+                          FormatJobId(job_id));
             it = leases_.erase(it);
         } else {
             ++it;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/transform.h"
+#include "temp_dir.h"
 
 namespace tessera {
 namespace {
@@ -22,26 +23,9 @@ namespace {
 namespace fs = std::filesystem;
 
 // A fresh folder per test, removed afterwards.
-class TempDir {
+class TempDir : public test::TempDir {
   public:
-    TempDir() {
-        std::string tmpl = (fs::temp_directory_path() / "tessera-mesh-XXXXXX").string();
-        if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-        path_ = tmpl;
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    std::string Write(const std::string& name, const std::string& contents) const {
-        fs::path p = path_ / name;
-        std::ofstream(p, std::ios::binary) << contents;
-        return p.string();
-    }
-    std::string Path(const std::string& name) const { return (path_ / name).string(); }
-
-  private:
-    fs::path path_;
+    TempDir() : test::TempDir("mesh") {}
 };
 
 Vec3 FaceNormal(const TriangleMesh& m, size_t tri) {

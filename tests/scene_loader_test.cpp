@@ -16,33 +16,17 @@
 #include "core/error.h"
 #include "scene/mesh.h"
 #include "scene/scene_records.h"
+#include "temp_dir.h"
 
 namespace tessera {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
+// A fresh folder per test, removed afterwards.
+class TempDir : public test::TempDir {
   public:
-    TempDir() {
-        std::string tmpl = (fs::temp_directory_path() / "tessera-scene-XXXXXX").string();
-        if (!mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-        path_ = tmpl;
-    }
-    ~TempDir() {
-        std::error_code ec;
-        fs::remove_all(path_, ec);
-    }
-    std::string Write(const std::string& name, const std::string& contents) const {
-        fs::path p = path_ / name;
-        fs::create_directories(p.parent_path());
-        std::ofstream(p, std::ios::binary) << contents;
-        return p.string();
-    }
-    std::string Path(const std::string& name) const { return (path_ / name).string(); }
-
-  private:
-    fs::path path_;
+    TempDir() : test::TempDir("scene") {}
 };
 
 std::string ExampleScene(const std::string& name) {

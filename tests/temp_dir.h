@@ -6,7 +6,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <stdexcept>
 #include <string>
 
 namespace tessera::test {
@@ -28,6 +31,36 @@ class TempDirTest : public testing::Test {
     void TearDown() override { std::filesystem::remove_all(dir_); }
 
     std::filesystem::path dir_;
+};
+
+// A fresh folder (<temp>/tessera-<prefix>-XXXXXX) for as long as the object lives.
+class TempDir {
+  public:
+    explicit TempDir(const std::string& prefix = "test") {
+        std::string pattern =
+            (std::filesystem::temp_directory_path() / ("tessera-" + prefix + "-XXXXXX")).string();
+        if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+        path_ = pattern;
+    }
+    ~TempDir() {
+        std::error_code ec;
+        std::filesystem::remove_all(path_, ec);
+    }
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+
+    // Writes `contents` to `name` (folders made as needed); returns its path.
+    std::string Write(const std::string& name, const std::string& contents) const {
+        const std::filesystem::path p = path_ / name;
+        std::filesystem::create_directories(p.parent_path());
+        std::ofstream(p, std::ios::binary) << contents;
+        return p.string();
+    }
+    std::string Path(const std::string& name) const { return (path_ / name).string(); }
+    const std::filesystem::path& Root() const { return path_; }
+
+  private:
+    std::filesystem::path path_;
 };
 
 }  // namespace tessera::test
