@@ -21,6 +21,7 @@
 
 #include "bundle_cache.h"
 #include "convert.h"
+#include "fake_blob_store.h"
 #include "plan/render_plan.h"
 #include "scene_cache.h"
 #include "sha256.h"
@@ -31,35 +32,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Blobs served from memory, counting fetches.
-class FakeBlobStore {
-  public:
-    std::string Add(const std::string& bytes) {
-        std::lock_guard lock(mutex_);
-        std::string hash = Sha256Hex(bytes);
-        blobs_[hash] = bytes;
-        return hash;
-    }
-    std::string Fetch(const std::string& hash) {
-        std::lock_guard lock(mutex_);
-        ++fetches_;
-        auto it = blobs_.find(hash);
-        if (it == blobs_.end()) throw std::runtime_error("NOT_FOUND: no blob " + hash);
-        return it->second;
-    }
-    BlobFetcher Fetcher() {
-        return [this](const std::string& h) { return Fetch(h); };
-    }
-    int Fetches() {
-        std::lock_guard lock(mutex_);
-        return fetches_;
-    }
-
-  private:
-    std::mutex mutex_;
-    std::map<std::string, std::string> blobs_;
-    int fetches_ = 0;
-};
+using test::FakeBlobStore;
 
 std::string ReadFile(const fs::path& p) {
     std::ifstream in(p, std::ios::binary);
