@@ -53,7 +53,7 @@ std::optional<Converter::Mesh> Converter::ReadMesh(ParamSet& ps, const Loc& loc,
     if (const std::vector<double>* n = ps.Numbers("N", {"normal3"})) {
         bool ok = n->size() == 3 * nv;
         for (size_t i = 0; ok && i < nv; ++i) {
-            const Vec3 v(float((*n)[3 * i]), float((*n)[3 * i + 1]), float((*n)[3 * i + 2]));
+            const Vec3 v{float((*n)[3 * i]), float((*n)[3 * i + 1]), float((*n)[3 * i + 2])};
             ok = LengthSquared(v) > 0;
             m.normals.push_back(v);
         }
