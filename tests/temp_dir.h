@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
@@ -32,6 +33,12 @@ class TempDirTest : public testing::Test {
 
     std::filesystem::path dir_;
 };
+
+// The whole of a file's bytes (empty if it cannot be read).
+inline std::string ReadFile(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
 
 // A fresh folder (<temp>/tessera-<prefix>-XXXXXX) for as long as the object lives.
 class TempDir {

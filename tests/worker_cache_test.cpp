@@ -34,12 +34,7 @@ namespace fs = std::filesystem;
 
 using test::FakeBlobStore;
 
-std::string ReadFile(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using test::ReadFile;
 
 // `n` bytes that differ from those of every other `seed`.
 std::string Bytes(int seed, size_t n) {

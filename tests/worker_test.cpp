@@ -24,6 +24,7 @@
 #include "scene/scene_loader.h"
 #include "scene_cache.h"
 #include "sha256.h"
+#include "temp_dir.h"
 
 namespace tessera {
 namespace {
@@ -32,12 +33,7 @@ namespace fs = std::filesystem;
 
 using test::FakeBlobStore;
 
-std::string ReadFile(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using test::ReadFile;
 
 class WorkerCacheTest : public ::testing::Test {
   protected:
