@@ -283,6 +283,63 @@ std::vector<v1::WorkerStatus> FarmClient::ListWorkers() {
     return {resp.workers().begin(), resp.workers().end()};
 }
 
+v1::JobStatus FarmClient::SetPriority(const std::string& job_id, int priority) {
+    v1::SetJobPriorityRequest req;
+    req.set_job_id(job_id);
+    req.set_priority(priority);
+    v1::JobStatus resp;
+    Check(
+        Retrying(*channel_, kCallTimeout,
+                 [&](grpc::ClientContext& ctx) { return farm_->SetJobPriority(&ctx, req, &resp); }),
+        "cannot set the priority of job '" + job_id + "'");
+    return resp;
+}
+
+v1::JobStatus FarmClient::Retry(const std::string& job_id) {
+    v1::RetryJobRequest req;
+    req.set_job_id(job_id);
+    v1::JobStatus resp;
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) { return farm_->RetryJob(&ctx, req, &resp); }),
+          "cannot retry job '" + job_id + "'");
+    return resp;
+}
+
+v1::DeleteJobResponse FarmClient::Delete(const std::string& job_id) {
+    v1::DeleteJobRequest req;
+    req.set_job_id(job_id);
+    v1::DeleteJobResponse resp;
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) { return farm_->DeleteJob(&ctx, req, &resp); }),
+          "cannot delete job '" + job_id + "'");
+    return resp;
+}
+
+std::vector<v1::JobLogEntry> FarmClient::JobLog(const std::string& job_id,
+                                                std::optional<int64_t> task, int limit) {
+    v1::GetJobLogRequest req;
+    req.set_job_id(job_id);
+    if (task) req.set_task(*task);
+    req.set_limit(limit);
+    v1::GetJobLogResponse resp;
+    Check(Retrying(*channel_, kCallTimeout,
+                   [&](grpc::ClientContext& ctx) { return farm_->GetJobLog(&ctx, req, &resp); }),
+          "cannot read the log of job '" + job_id + "'");
+    return {resp.entries().begin(), resp.entries().end()};
+}
+
+v1::WorkerStatus FarmClient::SetWorkerEnabled(const std::string& worker, bool enabled) {
+    v1::SetWorkerEnabledRequest req;
+    req.set_worker(worker);
+    req.set_enabled(enabled);
+    v1::WorkerStatus resp;
+    Check(Retrying(
+              *channel_, kCallTimeout,
+              [&](grpc::ClientContext& ctx) { return farm_->SetWorkerEnabled(&ctx, req, &resp); }),
+          std::string("cannot ") + (enabled ? "enable" : "disable") + " worker '" + worker + "'");
+    return resp;
+}
+
 void FarmClient::DownloadFrame(const std::string& job_id, int frame, bool preview,
                                const std::string& path) {
     fs::path target(path);

@@ -7,6 +7,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -73,6 +74,14 @@ class FarmClient {
     std::vector<v1::JobStatus> ListJobs();
     v1::JobStatus Cancel(const std::string& job_id);
     std::vector<v1::WorkerStatus> ListWorkers();
+    v1::JobStatus SetPriority(const std::string& job_id, int priority);
+    v1::JobStatus Retry(const std::string& job_id);
+    v1::DeleteJobResponse Delete(const std::string& job_id);
+    // The job's log, oldest first: the last `limit` entries (0: the coordinator's
+    // default), of one task (its number in the job) if `task` is given.
+    std::vector<v1::JobLogEntry> JobLog(const std::string& job_id, std::optional<int64_t> task,
+                                        int limit);
+    v1::WorkerStatus SetWorkerEnabled(const std::string& worker, bool enabled);
     // Streams the frame's EXR (or PNG preview) into `path`, atomically: a temporary file
     // in the same folder, then a rename.
     void DownloadFrame(const std::string& job_id, int frame, bool preview, const std::string& path);

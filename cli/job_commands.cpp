@@ -1,4 +1,5 @@
-// `tessera status`, `watch`, `cancel` and `fetch`: a job on a running coordinator.
+// `tessera status`, `watch`, `cancel`, `fetch`, `retry`, `priority`, `delete`, `logs` and
+// `workers`: jobs and workers on a running coordinator.
 
 #include <spdlog/spdlog.h>
 
@@ -7,7 +8,9 @@
 #include <ctime>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
+#include "command_line.h"
 #include "farm_commands.h"
 #include "job_options.h"
 #include "job_progress.h"
@@ -57,9 +60,10 @@ void PrintJobDetail(const v1::JobStatus& job) {
     }
     if (job.failures_size() > 0) std::printf("  failures (most recent first):\n");
     for (const v1::TaskFailure& f : job.failures())
-        std::printf("    frame %d %s task %d attempt %d on %s: %s\n", f.frame(),
-                    f.stage().empty() ? "render" : f.stage().c_str(), f.task_index(), f.attempt(),
-                    f.worker().c_str(), f.message().c_str());
+        std::printf("    frame %d %s task %d attempt %d on %s: %s (tessera logs %s --task %lld)\n",
+                    f.frame(), f.stage().empty() ? "render" : f.stage().c_str(), f.task_index(),
+                    f.attempt(), f.worker().c_str(), f.message().c_str(), job.job_id().c_str(),
+                    static_cast<long long>(f.task()));
 }
 
 void PrintJobTable(const std::vector<v1::JobStatus>& jobs) {
@@ -85,6 +89,10 @@ void PrintJobTable(const std::vector<v1::JobStatus>& jobs) {
 
 struct JobCommandOptions {
     std::string job_id;
+    int priority = 0;
+    std::optional<int64_t> task;
+    int limit = 200;
+    std::string worker;
     CoordinatorEndpoint coordinator;
     std::string output_dir;
     bool preview = false;
@@ -110,9 +118,32 @@ void RunStatus(const JobCommandOptions& o) {
     PrintWorkersPutAside(client.ListWorkers());
 }
 
-void RunWorkers(const JobCommandOptions& o) {
-    FarmClient client(o.coordinator);
-    const std::vector<v1::WorkerStatus> workers = client.ListWorkers();
+std::string FormatBytes(uint64_t bytes) {
+    char buf[32];
+    if (bytes >= (uint64_t(1) << 30))
+        std::snprintf(buf, sizeof buf, "%.2f GiB", bytes / double(uint64_t(1) << 30));
+    else if (bytes >= (uint64_t(1) << 20))
+        std::snprintf(buf, sizeof buf, "%.1f MiB", bytes / double(uint64_t(1) << 20));
+    else
+        std::snprintf(buf, sizeof buf, "%.1f KiB", bytes / 1024.0);
+    return buf;
+}
+
+// "1.23M" for 1234567: rates in a narrow column.
+std::string Rate(double per_second) {
+    char buf[32];
+    if (per_second >= 1e9)
+        std::snprintf(buf, sizeof buf, "%.2fG", per_second * 1e-9);
+    else if (per_second >= 1e6)
+        std::snprintf(buf, sizeof buf, "%.2fM", per_second * 1e-6);
+    else if (per_second >= 1e3)
+        std::snprintf(buf, sizeof buf, "%.1fk", per_second * 1e-3);
+    else
+        std::snprintf(buf, sizeof buf, "%.0f", per_second);
+    return buf;
+}
+
+void PrintWorkerTable(const std::vector<v1::WorkerStatus>& workers) {
     if (workers.empty()) {
         std::printf("no workers\n");
         return;
@@ -120,8 +151,8 @@ void RunWorkers(const JobCommandOptions& o) {
     int name_width = 4;
     for (const v1::WorkerStatus& w : workers)
         name_width = std::max(name_width, static_cast<int>(w.name().size()));
-    std::printf("%-*s  %-8s  %-9s  %7s  %5s  %-19s  %s\n", name_width, "NAME", "ID", "STATE",
-                "THREADS", "TASKS", "LAST SEEN", "NOTE");
+    std::printf("%-*s  %-8s  %-9s  %7s  %5s  %9s  %9s  %-19s  %s\n", name_width, "NAME", "ID",
+                "STATE", "THREADS", "TASKS", "SAMPLES/S", "RAYS/S", "LAST SEEN", "NOTE");
     for (const v1::WorkerStatus& w : workers) {
         std::string note;
         if (w.state() == "put aside")
@@ -129,9 +160,83 @@ void RunWorkers(const JobCommandOptions& o) {
                    std::to_string(w.failures_in_a_row()) + " failures in a row";
         else if (w.failures_in_a_row() > 0)
             note = std::to_string(w.failures_in_a_row()) + " failures in a row";
-        std::printf("%-*s  %-8s  %-9s  %7d  %5d  %-19s  %s\n", name_width, w.name().c_str(),
-                    w.worker_id().c_str(), w.state().c_str(), w.threads(), w.tasks_leased(),
-                    LocalTime(w.last_seen_unix_ms()).c_str(), note.c_str());
+        if (!w.current_task().empty()) note = w.current_task() + (note.empty() ? "" : "; ") + note;
+        std::printf("%-*s  %-8s  %-9s  %7d  %5d  %9s  %9s  %-19s  %s\n", name_width,
+                    w.name().c_str(), w.worker_id().c_str(), w.state().c_str(), w.threads(),
+                    w.tasks_leased(), Rate(w.samples_per_second()).c_str(),
+                    Rate(w.rays_per_second()).c_str(), LocalTime(w.last_seen_unix_ms()).c_str(),
+                    note.c_str());
+    }
+}
+
+void RunWorkers(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    PrintWorkerTable(client.ListWorkers());
+}
+
+void RunSetWorkerEnabled(const JobCommandOptions& o, bool enabled) {
+    FarmClient client(o.coordinator);
+    const v1::WorkerStatus w = client.SetWorkerEnabled(o.worker, enabled);
+    spdlog::info(
+        "worker {} ({}) is {}{}", w.name(), w.worker_id(), w.state(),
+        w.state() == "draining" ? ": it finishes the tasks it holds, then takes no more" : "");
+}
+
+void RunRetry(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    const v1::JobStatus status = client.Retry(o.job_id);
+    spdlog::info("job {} is {} again: {}/{} tasks done", o.job_id, JobStateName(status.state()),
+                 status.tasks_done(), status.tasks_total());
+}
+
+void RunPriority(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    const v1::JobStatus status = client.SetPriority(o.job_id, o.priority);
+    spdlog::info("job {} now has priority {}", o.job_id, status.priority());
+}
+
+void RunDelete(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    const v1::DeleteJobResponse r = client.Delete(o.job_id);
+    spdlog::info(
+        "job {} deleted: {} blob(s) removed ({}){}; frames already written to the output "
+        "stay",
+        o.job_id, r.blobs_removed(), FormatBytes(r.bytes_removed()),
+        r.blobs_left_for_gc() > 0 ? ", " + std::to_string(r.blobs_left_for_gc()) +
+                                        " used too recently are left to garbage collection"
+                                  : std::string());
+}
+
+void RunLogs(const JobCommandOptions& o) {
+    FarmClient client(o.coordinator);
+    const std::vector<v1::JobLogEntry> entries = client.JobLog(o.job_id, o.task, o.limit);
+    if (entries.empty()) std::printf("no log entries\n");
+    for (const v1::JobLogEntry& e : entries) {
+        std::string where;
+        if (e.task() >= 0)
+            where = "task " + std::to_string(e.task()) + " (frame " + std::to_string(e.frame()) +
+                    " " + e.stage() + " " + std::to_string(e.task_index()) + ")";
+        else if (e.frame() >= 0)
+            where =
+                "frame " + std::to_string(e.frame()) + (e.stage().empty() ? "" : " ") + e.stage();
+        else
+            where = "job";
+        std::string who;
+        if (!e.worker().empty()) who = " on " + e.worker();
+        if (e.attempt() > 0) who += " attempt " + std::to_string(e.attempt());
+        std::printf("%s  %-10s %s%s%s%s\n", LocalTime(e.at_unix_ms()).c_str(), e.kind().c_str(),
+                    where.c_str(), who.c_str(), e.message().empty() ? "" : ": ",
+                    e.message().c_str());
+        if (!e.log_tail().empty()) {
+            std::printf("    worker log:\n");
+            size_t start = 0;
+            while (start < e.log_tail().size()) {
+                size_t end = e.log_tail().find('\n', start);
+                if (end == std::string::npos) end = e.log_tail().size();
+                std::printf("    | %s\n", e.log_tail().substr(start, end - start).c_str());
+                start = end + 1;
+            }
+        }
     }
 }
 
@@ -235,9 +340,57 @@ void AddJobCommands(CLI::App& app) {
 
     auto workers = std::make_shared<JobCommandOptions>();
     CLI::App* workers_cmd = app.add_subcommand(
-        "workers", "List the workers: state, tasks, last heartbeat, and those put aside");
+        "workers",
+        "List the workers (state, current task, samples/s, rays/s, last heartbeat); "
+        "`workers disable NAME` stops leasing to one, `workers enable NAME` resumes");
     AddCoordinatorOption(*workers_cmd, workers->coordinator);
-    workers_cmd->callback([workers] { RunWorkers(*workers); });
+    workers_cmd->require_subcommand(0, 1);
+    for (const bool enable : {false, true}) {
+        CLI::App* sub = workers_cmd->add_subcommand(
+            enable ? "enable" : "disable",
+            enable ? "Let a disabled worker take tasks again"
+                   : "Lease no more tasks to a worker (it finishes those it holds); stored, "
+                     "so it lasts across restarts");
+        sub->add_option("worker", workers->worker, "The worker's name (or id, w-N)")->required();
+        AddCoordinatorOption(*sub, workers->coordinator);
+        sub->callback([workers, enable] { RunSetWorkerEnabled(*workers, enable); });
+    }
+    workers_cmd->callback([workers, workers_cmd] {
+        if (workers_cmd->get_subcommands().empty()) RunWorkers(*workers);
+    });
+
+    auto retry = std::make_shared<JobCommandOptions>();
+    AddJobCommand(app, "retry",
+                  "Run a failed or cancelled job again: its unwritten frames are queued, tasks "
+                  "done keep their results",
+                  retry, true)
+        ->callback([retry] { RunRetry(*retry); });
+
+    auto priority = std::make_shared<JobCommandOptions>();
+    CLI::App* priority_cmd = AddJobCommand(
+        app, "priority", "Change a job's priority (higher runs first)", priority, true);
+    priority_cmd->add_option("priority", priority->priority, "The new priority")->required();
+    priority_cmd->callback([priority] { RunPriority(*priority); });
+
+    auto del = std::make_shared<JobCommandOptions>();
+    AddJobCommand(app, "delete",
+                  "Delete a job (cancelling it if it runs): its records and the blobs no other "
+                  "job needs; frames already written stay",
+                  del, true)
+        ->callback([del] { RunDelete(*del); });
+
+    auto logs = std::make_shared<JobCommandOptions>();
+    CLI::App* logs_cmd = AddJobCommand(
+        app, "logs",
+        "Show a job's log: leases, completions, failures with their worker's log lines, "
+        "expiries, merges, frames",
+        logs, true);
+    logs_cmd->add_option("--task", logs->task, "Only this task (its number in the job)")
+        ->check(AtLeast(int64_t(0)));
+    logs_cmd->add_option("--limit", logs->limit, "The most recent this many entries")
+        ->capture_default_str()
+        ->check(InRange(1, 100000));
+    logs_cmd->callback([logs] { RunLogs(*logs); });
 
     auto watch = std::make_shared<JobCommandOptions>();
     CLI::App* watch_cmd = AddJobCommand(

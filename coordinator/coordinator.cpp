@@ -152,6 +152,7 @@ void Coordinator::SweepLoop() {
         }
         // Also while out of space: what it removes is space.
         if (options_.gc_interval_ms > 0 && now >= next_gc) {
+            RunPeriodic("job retention", [this] { ApplyRetention(); });
             RunPeriodic("blob garbage collection", [this] { CollectGarbage(); });
             next_gc = std::chrono::steady_clock::now() + gc_interval;
         }
@@ -221,6 +222,65 @@ std::string Coordinator::SubmitJob(const v1::JobSpec& spec, const TokenLimits& t
         spdlog::warn("job {}: cannot keep its bundle: {}", job_id, e.what());
     }
     return job_id;
+}
+
+v1::JobStatus Coordinator::SetJobPriority(const std::string& job_id, int priority,
+                                          const TokenLimits& token_limits) {
+    if (token_limits.max_priority && priority > *token_limits.max_priority)
+        ThrowError(ErrorCode::kInvalidArgument,
+                   fmt::format("priority {} is over the limit of token '{}', {}", priority,
+                               token_limits.token_name, *token_limits.max_priority));
+    return Watched([&] { return scheduler_.SetPriority(job_id, priority); });
+}
+
+v1::JobStatus Coordinator::RetryJob(const std::string& job_id) {
+    return Watched([&] { return scheduler_.Retry(job_id); });
+}
+
+v1::DeleteJobResponse Coordinator::DeleteJob(const std::string& job_id) {
+    const DeletedJob deleted = Watched([&] { return scheduler_.Delete(job_id); });
+    std::error_code ec;
+    fs::remove_all(fs::path(planner_.JobsDir()) / job_id, ec);
+    if (ec) spdlog::warn("job {}: cannot remove its bundle folder: {}", job_id, ec.message());
+    // What another job still needs stays. Results and artifacts were this job's alone
+    // and go at once; bundle files may be about to be used by a submission whose upload
+    // touched them, so those touched within the grace period are left to the collector.
+    const std::vector<std::string> live_hashes = scheduler_.LiveBlobs();
+    const std::unordered_set<std::string> live(live_hashes.begin(), live_hashes.end());
+    std::unordered_set<std::string> seen;
+    v1::DeleteJobResponse response;
+    auto remove = [&](const std::vector<std::string>& hashes, double min_age_s) {
+        for (const std::string& hash : hashes) {
+            if (live.count(hash) || !seen.insert(hash).second) continue;
+            const std::optional<uint64_t> size = blobs_.Size(hash);
+            if (!size) continue;
+            if (blobs_.Remove(hash, min_age_s)) {
+                response.set_blobs_removed(response.blobs_removed() + 1);
+                response.set_bytes_removed(response.bytes_removed() + *size);
+            } else if (blobs_.Has(hash)) {
+                response.set_blobs_left_for_gc(response.blobs_left_for_gc() + 1);
+            }
+        }
+    };
+    remove(deleted.outputs, 0);
+    remove(deleted.inputs, options_.gc_grace_ms / 1000.0);
+    spdlog::info("job {} deleted: {} blob(s) removed ({} bytes), {} left to garbage collection",
+                 job_id, response.blobs_removed(), response.bytes_removed(),
+                 response.blobs_left_for_gc());
+    return response;
+}
+
+int Coordinator::ApplyRetention() {
+    if (options_.retention_ms <= 0) return 0;
+    int deleted = 0;
+    for (const std::string& job_id :
+         scheduler_.JobsFinishedBefore(clock_.NowMs() - options_.retention_ms)) {
+        spdlog::info("job {} finished over {} h ago: deleted (retention)", job_id,
+                     options_.retention_ms / 3600000.0);
+        DeleteJob(job_id);
+        ++deleted;
+    }
+    return deleted;
 }
 
 int64_t Coordinator::QueuedTasks() { return scheduler_.UnfinishedTasks(); }
@@ -296,9 +356,11 @@ void Coordinator::CompleteTask(const std::string& worker_id, int64_t task_id, in
 }
 
 void Coordinator::FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                           const std::string& lease_token, const std::string& message) {
+                           const std::string& lease_token, const std::string& message,
+                           const std::string& log_tail) {
     if (message.find("no space left on ") == std::string::npos) {
-        Watched([&] { scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message); });
+        Watched(
+            [&] { scheduler_.Fail(worker_id, task_id, lease_id, lease_token, message, log_tail); });
         return;
     }
     // Only the lease's holder may give it back.

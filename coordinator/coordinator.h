@@ -55,6 +55,9 @@ struct CoordinatorOptions {
     // submission or completion has not arrived yet.
     int gc_interval_ms = 60000;
     int gc_grace_ms = 10 * 60 * 1000;
+    // Finished jobs are deleted (DeleteJob: records, bundle, blobs; not their frames on
+    // disk) this long after they finished; 0 keeps them for ever.
+    int64_t retention_ms = int64_t(30) * 24 * 3600 * 1000;
 };
 
 // What a garbage collection found and did.
@@ -89,11 +92,29 @@ class Coordinator final : public SchedulerListener {
     v1::JobStatus CancelJob(const std::string& job_id) {
         return Watched([&] { return scheduler_.Cancel(job_id); });
     }
+    // See Scheduler::SetPriority; over the token's max_priority: INVALID_ARGUMENT.
+    v1::JobStatus SetJobPriority(const std::string& job_id, int priority,
+                                 const TokenLimits& token_limits = {});
+    v1::JobStatus RetryJob(const std::string& job_id);
+    // Deletes the job's records, its bundle folder and the blobs no other job needs
+    // (those touched within the grace period are left to garbage collection). The
+    // frames written to the output stay.
+    v1::DeleteJobResponse DeleteJob(const std::string& job_id);
+    std::vector<v1::JobLogEntry> JobLog(const std::string& job_id, std::optional<int64_t> task,
+                                        int limit) {
+        return scheduler_.JobLog(job_id, task, limit);
+    }
+    v1::WorkerStatus SetWorkerEnabled(const std::string& worker, bool enabled) {
+        return scheduler_.SetWorkerEnabled(worker, enabled);
+    }
     // Removes the blobs nothing needs any more (Store::LiveBlobHashes) and that were not
     // written or touched within options.gc_grace_ms: a written frame's tile results, a
     // finished stage's task results once the frame is written. Never what an unfinished
     // frame or any job's bundle needs. Runs by itself every options.gc_interval_ms.
     GcStats CollectGarbage();
+    // Deletes the finished jobs older than options.retention_ms (as DeleteJob); returns
+    // how many. Runs by itself with the garbage collection.
+    int ApplyRetention();
 
     // The EXR (or PNG preview) of a DONE frame; NOT_FOUND otherwise.
     std::string FrameFile(const std::string& job_id, int frame, bool preview);
@@ -117,8 +138,8 @@ class Coordinator final : public SchedulerListener {
     }
     void CancelLeaseWait(uint64_t handle) { dispatcher_.Cancel(handle); }
     HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                             const std::string& lease_token) {
-        return scheduler_.Heartbeat(worker_id, task_id, lease_id, lease_token);
+                             const std::string& lease_token, const WorkerReport& report = {}) {
+        return scheduler_.Heartbeat(worker_id, task_id, lease_id, lease_token, report);
     }
     // The result comes either inline (`result` non-empty; `result_hash`, if given, must
     // be its SHA-256: INVALID_ARGUMENT otherwise; RESOURCE_EXHAUSTED over
@@ -139,7 +160,8 @@ class Coordinator final : public SchedulerListener {
     // count: while space is short it is RESOURCE_EXHAUSTED and the lease runs out, later
     // the task is re-queued at once.
     void FailTask(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                  const std::string& lease_token, const std::string& message);
+                  const std::string& lease_token, const std::string& message,
+                  const std::string& log_tail = {});
 
     // --- Blobs
     BlobStore& Blobs() { return blobs_; }

@@ -90,11 +90,21 @@ Scheduler::Scheduler(const std::string& db_path, const SchedulerOptions& options
     : clock_(clock), options_(options), store_(db_path) {
     const int64_t now = clock_.NowMs();
     last_lease_id_ = store_.GetMeta("last_lease_id", 0);
-    for (const WorkerRow& w : store_.Workers()) workers_[w.id] = {w.name, w.threads, now, false};
+    for (const WorkerRow& w : store_.Workers()) {
+        Worker& worker = workers_[w.id] = {w.name, w.threads, now, false};
+        worker.disabled = w.disabled;
+    }
     // A lease from before tokens were stored has an empty one: only its worker, which
     // sends none, may finish it.
     for (const TaskRow& t : store_.LeasedTasks()) {
-        leases_[t.id] = {t.lease_id, t.worker_id, t.job_id, now + options_.lease_ms, t.lease_token};
+        leases_[t.id] = {t.lease_id,
+                         t.worker_id,
+                         t.job_id,
+                         now + options_.lease_ms,
+                         t.lease_token,
+                         t.stage,
+                         fmt::format("{} frame {} {} {}", FormatJobId(t.job_id), t.frame, t.stage,
+                                     t.task_index)};
         last_lease_id_ = std::max(last_lease_id_, t.lease_id);
     }
     if (!leases_.empty())
@@ -228,7 +238,7 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
         const int64_t now = clock_.NowMs();
-        if (worker.put_aside_until_ms > now) return std::nullopt;
+        if (worker.put_aside_until_ms > now || worker.disabled) return std::nullopt;
         if (worker.put_aside_until_ms != 0) {
             worker.put_aside_until_ms = 0;
             spdlog::info("worker '{}' ({}) is back from being put aside", worker.name, worker_id);
@@ -247,9 +257,22 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         store_.CountLease(task->job_id, now);
         store_.MarkFrameRendering(task->job_id, task->frame, now);
         const bool frame_started = store_.Db().Changes() == 1;
+        Log(task->job_id, "leased", &*task, info->first_task_id, worker.name, task->attempts + 1,
+            fmt::format("lease {} until {} ms from now", lease_id, options_.lease_ms));
         txn.Commit();
         last_lease_id_ = lease_id;
-        leases_[task->id] = {lease_id, wid, task->job_id, now + options_.lease_ms, token};
+        ++counters_.leases_granted;
+        const int stage_tasks = task->stage_index < static_cast<int>(info->plan->stages.size())
+                                    ? info->plan->stages[task->stage_index].num_tasks
+                                    : 0;
+        leases_[task->id] = {lease_id,
+                             wid,
+                             task->job_id,
+                             now + options_.lease_ms,
+                             token,
+                             task->stage,
+                             fmt::format("{} frame {} {} {}/{}", job_id, task->frame, task->stage,
+                                         task->task_index + 1, stage_tasks)};
 
         out.emplace();
         out->task_id = task->id;
@@ -328,37 +351,74 @@ int64_t Scheduler::UnfinishedTasks() {
 std::vector<v1::WorkerStatus> Scheduler::ListWorkers() {
     std::lock_guard lock(mu_);
     const int64_t now = clock_.NowMs();
-    std::unordered_map<int64_t, int> leased;
-    for (const auto& [task_id, lease] : leases_) ++leased[lease.worker_id];
     std::vector<v1::WorkerStatus> list;
-    for (const auto& [id, w] : workers_) {
-        v1::WorkerStatus& s = list.emplace_back();
-        s.set_worker_id(FormatWorkerId(id));
-        s.set_name(w.name);
-        s.set_threads(w.threads);
-        s.set_tasks_leased(leased[id]);
-        s.set_last_seen_unix_ms(w.last_seen_ms);
-        s.set_failures_in_a_row(w.failures_in_a_row);
-        if (w.put_aside_until_ms > now) {
-            s.set_state("put aside");
-            s.set_put_aside_until_unix_ms(w.put_aside_until_ms);
-        } else if (w.silent) {
-            s.set_state("silent");
-        } else {
-            s.set_state(leased[id] > 0 ? "busy" : "idle");
-        }
-    }
+    for (const auto& [id, w] : workers_) list.push_back(WorkerStatusOf(id, w, now));
     std::sort(list.begin(), list.end(), [](const v1::WorkerStatus& a, const v1::WorkerStatus& b) {
         return std::tie(a.name(), a.worker_id()) < std::tie(b.name(), b.worker_id());
     });
     return list;
 }
 
+v1::WorkerStatus Scheduler::WorkerStatusOf(int64_t id, const Worker& w, int64_t now) {
+    int leased = 0;
+    const Lease* current = nullptr;
+    for (const auto& [task_id, lease] : leases_)
+        if (lease.worker_id == id) {
+            ++leased;
+            if (!current || lease.lease_id < current->lease_id) current = &lease;
+        }
+    v1::WorkerStatus s;
+    s.set_worker_id(FormatWorkerId(id));
+    s.set_name(w.name);
+    s.set_threads(w.threads);
+    s.set_tasks_leased(leased);
+    s.set_last_seen_unix_ms(w.last_seen_ms);
+    s.set_failures_in_a_row(w.failures_in_a_row);
+    s.set_disabled(w.disabled);
+    if (current) s.set_current_task(current->what);
+    s.set_samples_done(static_cast<int64_t>(w.report.samples_done));
+    s.set_rays_traced(static_cast<int64_t>(w.report.rays_traced));
+    // Rates go stale with the reports that made them.
+    const bool fresh = w.report_ms > 0 && now - w.report_ms <= options_.lease_ms;
+    s.set_samples_per_second(fresh ? w.samples_per_second : 0.0);
+    s.set_rays_per_second(fresh ? w.rays_per_second : 0.0);
+    s.set_tasks_done(w.tasks_done);
+    s.set_tasks_failed(w.tasks_failed);
+    if (w.silent) {
+        s.set_state("silent");
+    } else if (w.disabled) {
+        s.set_state(leased > 0 ? "draining" : "disabled");
+    } else if (w.put_aside_until_ms > now) {
+        s.set_state("put aside");
+        s.set_put_aside_until_unix_ms(w.put_aside_until_ms);
+    } else {
+        s.set_state(leased > 0 ? "busy" : "idle");
+    }
+    return s;
+}
+
 HeartbeatReply Scheduler::Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                                    const std::string& lease_token) {
+                                    const std::string& lease_token, const WorkerReport& report) {
     std::lock_guard lock(mu_);
     int64_t wid = 0;
-    FindWorker(worker_id, &wid);
+    Worker& worker = FindWorker(worker_id, &wid);
+    if (report.samples_done != 0 || report.rays_traced != 0) {
+        const int64_t now = clock_.NowMs();
+        const int64_t dt = now - worker.report_ms;
+        // Totals restart with the worker process: a smaller total starts a new series.
+        const bool restarted = report.samples_done < worker.report.samples_done ||
+                               report.rays_traced < worker.report.rays_traced;
+        if (worker.report_ms > 0 && !restarted && dt >= 200) {
+            worker.samples_per_second =
+                double(report.samples_done - worker.report.samples_done) * 1000.0 / double(dt);
+            worker.rays_per_second =
+                double(report.rays_traced - worker.report.rays_traced) * 1000.0 / double(dt);
+        }
+        if (worker.report_ms == 0 || restarted || dt >= 200) {
+            worker.report = report;
+            worker.report_ms = now;
+        }
+    }
     HeartbeatReply reply;
     if (task_id == 0) return reply;
     auto it = leases_.find(task_id);
@@ -466,9 +526,13 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         store_.CountTaskDone(task.job_id);
         store_.CountFrameTaskDone(task.job_id, task.frame);
         const int stage_done = store_.CountStageTaskDone(task.job_id, task.frame, task.stage_index);
+        Log(task.job_id, "done", &task, info->first_task_id, worker.name, task.attempts,
+            fmt::format("result {}", result_hash.substr(0, 12)));
         txn.Commit();
         leases_.erase(task_id);
         worker.failures_in_a_row = 0;
+        ++worker.tasks_done;
+        ++counters_.completed_by_stage[stage.name];
         spdlog::debug("lease {}: task {} ({} frame {} {} {}) completed by worker '{}' ({}/{})",
                       lease_id, task_id, job_id, task.frame, stage.name, task.task_index,
                       worker.name, stage_done, stage.num_tasks);
@@ -491,7 +555,8 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
 }
 
 void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                     const std::string& lease_token, const std::string& message) {
+                     const std::string& lease_token, const std::string& message,
+                     const std::string& log_tail) {
     Events events;
     {
         std::lock_guard lock(mu_);
@@ -502,12 +567,18 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
         const std::string job_id = FormatJobId(task.job_id);
         const std::string text = Truncate(message.empty() ? "(no message)" : message);
         const int failures = task.failures + 1;
+        const std::string tail =
+            log_tail.size() > 8192 ? log_tail.substr(log_tail.size() - 8192) : log_tail;
+        const int64_t first_task_id = Info(task.job_id)->first_task_id;
         SqliteTransaction txn(store_.Db());
         store_.RequeueTask(task_id, lease_id, true);
-        store_.InsertFailure(
-            task.job_id,
-            {task.frame, task.task_index, task.attempts, worker.name, text, task.stage},
-            clock_.NowMs());
+        store_.InsertFailure(task.job_id,
+                             {task.frame, task.task_index, task.attempts, worker.name, text,
+                              task.stage, tail, task.id - first_task_id},
+                             clock_.NowMs());
+        Log(task.job_id, "failed", &task, first_task_id, worker.name, task.attempts, text, tail);
+        ++worker.tasks_failed;
+        ++counters_.failed_by_stage[task.stage];
         spdlog::warn(
             "lease {}: task {} ({} frame {} {} {}) failed on worker '{}' (failure {} of "
             "{}): {}",
@@ -563,6 +634,14 @@ int Scheduler::Sweep() {
                 const Lease lease = leases_[task_id];
                 store_.RequeueTask(task_id, lease.lease_id, false);
                 const std::string job_id = FormatJobId(lease.job_id);
+                if (std::optional<TaskRow> task = store_.GetTask(task_id)) {
+                    const std::optional<JobRow> job = store_.GetJob(lease.job_id);
+                    Log(lease.job_id, "expired", &*task, job ? job->first_task_id : 0,
+                        WorkerName(lease.worker_id), task->attempts,
+                        fmt::format("lease {} expired; re-queued", lease.lease_id));
+                }
+                ++counters_.leases_expired;
+                ++counters_.expired_by_stage[lease.stage];
                 spdlog::warn("lease {}: task {} ({}) on worker '{}' expired; re-queued",
                              lease.lease_id, task_id, job_id, WorkerName(lease.worker_id));
                 events.push_back({Event::kJob, job_id,
@@ -605,6 +684,8 @@ void Scheduler::EndJob(int64_t job_id, int state, const std::string& error) {
             ++it;
         }
     }
+    Log(job_id, state == v1::JOB_STATE_FAILED ? "job-failed" : "cancelled", nullptr, 0, "", 0,
+        error);
     spdlog::log(state == v1::JOB_STATE_FAILED ? spdlog::level::err : spdlog::level::info,
                 "job {} '{}' {}{}", FormatJobId(job_id), job.name,
                 state == v1::JOB_STATE_FAILED ? "failed: " : "cancelled", error);
@@ -629,6 +710,8 @@ std::string Scheduler::AddJob(NewJob job) {
         std::lock_guard lock(mu_);
         SqliteTransaction txn(store_.Db());
         const int64_t id = store_.InsertJob(job, clock_.NowMs());
+        Log(id, "submitted", nullptr, 0, "", 0,
+            fmt::format("{} tasks per frame, priority {}", job.TasksPerFrame(), job.priority));
         txn.Commit();
         job_id = FormatJobId(id);
         const int frames = job.NumFrames();
@@ -688,6 +771,8 @@ v1::JobStatus Scheduler::BuildStatus(int64_t job_id) {
         tf->set_message(f.message);
         tf->set_attempt(f.attempt);
         tf->set_stage(f.stage);
+        tf->set_log_tail(f.log_tail);
+        tf->set_task(f.task);
     }
     s.set_submitted_unix_ms(job.submitted_ms);
     s.set_finished_unix_ms(job.finished_ms);
@@ -839,6 +924,17 @@ void Scheduler::StageMerged(const std::string& job_id, int frame, int stage,
                                 rows[t].first_task_id + rows[t].num_tasks - 1);
             released += (released.empty() ? "" : ", ") + plan[t].name;
         }
+        {
+            LogRow e;
+            e.job_id = id;
+            e.at_ms = clock_.NowMs();
+            e.kind = "merged";
+            e.frame = frame;
+            e.stage = plan[stage].name;
+            e.message =
+                fmt::format("{} bytes{}{}", size, released.empty() ? "" : "; released ", released);
+            store_.InsertLog(e);
+        }
         txn.Commit();
         spdlog::info("job {} frame {}: {} merged into {} ({} bytes){}{}", job_id, frame,
                      plan[stage].name, hash.substr(0, 12), size,
@@ -874,6 +970,16 @@ void Scheduler::FrameWritten(const std::string& job_id, int frame, const std::st
         const bool job_done =
             job.state == v1::JOB_STATE_RUNNING && store_.CountFramesNotDone(id) == 0;
         if (job_done) store_.SetJobState(id, v1::JOB_STATE_DONE, "", clock_.NowMs());
+        {
+            LogRow e;
+            e.job_id = id;
+            e.at_ms = clock_.NowMs();
+            e.kind = "frame";
+            e.frame = frame;
+            e.message = "written to " + exr_path;
+            store_.InsertLog(e);
+        }
+        if (job_done) Log(id, "job-done", nullptr, 0, "", 0, "");
         txn.Commit();
         spdlog::info("job {} frame {} written: {}", job_id, frame, exr_path);
         events.push_back({Event::kJob, job_id, fmt::format("frame {} done", frame)});
@@ -903,6 +1009,17 @@ void Scheduler::RequeueDoneTasks(const std::string& job_id, int frame, int stage
             if (index >= 0 && index < row->num_tasks)
                 requeued += store_.RequeueDoneTask(row->first_task_id + index, completions) ? 1 : 0;
         store_.UncountTasksDone(id, frame, stage, requeued);
+        {
+            LogRow e;
+            e.job_id = id;
+            e.at_ms = clock_.NowMs();
+            e.kind = "requeued";
+            e.frame = frame;
+            e.stage = name;
+            e.message =
+                fmt::format("{} done task(s) whose results could not be read back", requeued);
+            store_.InsertLog(e);
+        }
         txn.Commit();
         spdlog::warn("job {} frame {}: {} finished {} task(s) re-queued", job_id, frame, requeued,
                      name);
@@ -943,6 +1060,217 @@ std::string Scheduler::FrameExrPath(const std::string& job_id, int frame) {
         ThrowError(ErrorCode::kNotFound,
                    fmt::format("frame {} of {} is not done yet", frame, job_id));
     return row->exr_path;
+}
+
+void Scheduler::Log(int64_t job_id, const char* kind, const TaskRow* task, int64_t first_task_id,
+                    const std::string& worker, int attempt, const std::string& message,
+                    const std::string& log_tail) {
+    LogRow e;
+    e.job_id = job_id;
+    e.at_ms = clock_.NowMs();
+    e.kind = kind;
+    if (task) {
+        e.frame = task->frame;
+        e.stage = task->stage;
+        e.task_index = task->task_index;
+        e.task = task->id - first_task_id;
+    }
+    e.worker = worker;
+    e.attempt = attempt;
+    e.message = Truncate(message);
+    e.log_tail = log_tail;
+    store_.InsertLog(e);
+}
+
+v1::WorkerStatus Scheduler::SetWorkerEnabled(const std::string& worker, bool enabled) {
+    std::lock_guard lock(mu_);
+    // By name (the oldest worker of that name, as RegisterWorker) or by id.
+    int64_t id = 0;
+    for (const auto& [known_id, w] : workers_)
+        if (w.name == worker && (id == 0 || known_id < id)) id = known_id;
+    if (id == 0 && worker.rfind("w-", 0) == 0) {
+        int64_t parsed = 0;
+        auto [ptr, ec] = std::from_chars(worker.data() + 2, worker.data() + worker.size(), parsed);
+        if (ec == std::errc() && ptr == worker.data() + worker.size() && workers_.count(parsed))
+            id = parsed;
+    }
+    if (id == 0)
+        ThrowError(ErrorCode::kNotFound,
+                   fmt::format("no worker named '{}' (tessera workers lists them)",
+                               worker.substr(0, 256)));
+    Worker& w = workers_[id];
+    if (w.disabled != !enabled) {
+        SqliteTransaction txn(store_.Db());
+        store_.SetWorkerDisabled(id, !enabled);
+        txn.Commit();
+        w.disabled = !enabled;
+        spdlog::info("worker '{}' ({}) {}", w.name, FormatWorkerId(id),
+                     enabled ? "enabled: it takes tasks again"
+                             : "disabled: it finishes the tasks it holds and takes no new ones");
+    }
+    if (enabled && listener_) listener_->OnWorkAvailable();
+    return WorkerStatusOf(id, w, clock_.NowMs());
+}
+
+std::vector<StageTaskCounts> Scheduler::TaskCountsByStage() {
+    std::lock_guard lock(mu_);
+    std::vector<StageTaskCounts> out;
+    for (int64_t id : store_.JobIds()) {
+        const std::optional<int> state = store_.JobState(id);
+        if (!state || IsFinished(*state)) continue;
+        const std::shared_ptr<const JobInfo> info = Info(id);
+        for (const auto& [stage, counts] : store_.TaskCountsByStage(
+                 info->first_task_id, info->first_task_id + info->tasks_total - 1)) {
+            auto it = std::find_if(out.begin(), out.end(),
+                                   [&](const StageTaskCounts& c) { return c.stage == stage; });
+            if (it == out.end()) {
+                out.push_back({stage});
+                it = out.end() - 1;
+            }
+            it->pending += counts[int(TaskState::kPending)];
+            it->leased += counts[int(TaskState::kLeased)];
+            it->done += counts[int(TaskState::kDone)];
+            it->waiting += counts[int(TaskState::kWaiting)];
+        }
+    }
+    return out;
+}
+
+SchedulerCounters Scheduler::Counters() {
+    std::lock_guard lock(mu_);
+    return counters_;
+}
+
+v1::JobStatus Scheduler::SetPriority(const std::string& job_id, int priority) {
+    const int64_t id = ParseJobId(job_id);
+    v1::JobStatus status;
+    int old = 0;
+    {
+        std::lock_guard lock(mu_);
+        const JobRow job = LoadJob(id);
+        if (IsFinished(job.state))
+            ThrowError(ErrorCode::kFailedPrecondition,
+                       fmt::format("{} is {}: its priority no longer matters", job_id,
+                                   v1::JobState_Name(job.state)));
+        old = job.priority;
+        SqliteTransaction txn(store_.Db());
+        store_.SetJobPriority(id, priority);
+        Log(id, "priority", nullptr, 0, "", 0, fmt::format("priority {} -> {}", old, priority));
+        txn.Commit();
+        spdlog::info("job {} '{}': priority {} -> {}", job_id, job.name, old, priority);
+        status = BuildStatus(id);
+    }
+    Emit({{Event::kJob, job_id, fmt::format("priority {} -> {}", old, priority)},
+          {Event::kWork, job_id, ""}});
+    return status;
+}
+
+v1::JobStatus Scheduler::Retry(const std::string& job_id) {
+    const int64_t id = ParseJobId(job_id);
+    v1::JobStatus status;
+    Events events;
+    {
+        std::lock_guard lock(mu_);
+        const JobRow job = LoadJob(id);
+        if (job.state == v1::JOB_STATE_DONE)
+            ThrowError(ErrorCode::kFailedPrecondition,
+                       job_id + " is done: every frame is written, nothing to retry");
+        if (!IsFinished(job.state))
+            ThrowError(
+                ErrorCode::kFailedPrecondition,
+                fmt::format("{} is still {}: only a failed or cancelled job can be "
+                            "retried",
+                            job_id, job.state == v1::JOB_STATE_QUEUED ? "queued" : "running"));
+        jobs_.erase(id);
+        const std::shared_ptr<const JobInfo> info = Info(id);
+        const std::vector<StagePlan>& plan = info->plan->stages;
+        SqliteTransaction txn(store_.Db());
+        store_.ReopenJob(id);
+        int reopened = 0, frames = 0;
+        std::vector<std::pair<int, int>> merges;  // (frame, stage) done but never merged
+        std::vector<int> assemblies;              // frames done but never written
+        for (const FrameRow& f : store_.GetFrames(id)) {
+            if (f.state == v1::FRAME_STATE_DONE) continue;
+            ++frames;
+            const std::vector<StageRow> rows = store_.GetFrameStages(id, f.frame);
+            for (const StageRow& row : rows) {
+                bool inputs_in = true;
+                if (row.index < static_cast<int>(plan.size()))
+                    for (int r : plan[row.index].reads)
+                        inputs_in &= r < static_cast<int>(rows.size()) && rows[r].merged;
+                reopened +=
+                    store_.ReopenTasks(row.first_task_id, row.first_task_id + row.num_tasks - 1,
+                                       inputs_in ? TaskState::kPending : TaskState::kWaiting);
+                if (row.produces_artifact && !row.merged && row.tasks_done == row.num_tasks)
+                    merges.emplace_back(f.frame, row.index);
+            }
+            if (f.tasks_done == f.tasks_total) assemblies.push_back(f.frame);
+        }
+        Log(id, "retried", nullptr, 0, "", 0,
+            fmt::format("{} frame(s) re-opened, {} task(s) queued again", frames, reopened));
+        txn.Commit();
+        spdlog::info("job {} '{}' retried: {} frame(s) re-opened, {} task(s) queued again", job_id,
+                     job.name, frames, reopened);
+        status = BuildStatus(id);
+        events.push_back({Event::kJob, job_id, "job retried"});
+        events.push_back({Event::kWork, job_id, ""});
+        for (const auto& [frame, stage] : merges)
+            events.push_back({Event::kStageReady, job_id, "", frame, stage});
+        for (int frame : assemblies) events.push_back({Event::kFrameReady, job_id, "", frame});
+    }
+    Emit(events);
+    return status;
+}
+
+DeletedJob Scheduler::Delete(const std::string& job_id) {
+    const int64_t id = ParseJobId(job_id);
+    DeletedJob deleted;
+    {
+        std::lock_guard lock(mu_);
+        const JobRow job = LoadJob(id);
+        SqliteTransaction txn(store_.Db());
+        if (!IsFinished(job.state)) EndJob(id, v1::JOB_STATE_CANCELLED, "");
+        store_.DeleteJob(id, &deleted.inputs, &deleted.outputs);
+        txn.Commit();
+        jobs_.erase(id);
+        spdlog::info("job {} '{}' deleted", job_id, job.name);
+    }
+    Emit({{Event::kJob, job_id, "job deleted"}});
+    return deleted;
+}
+
+std::vector<v1::JobLogEntry> Scheduler::JobLog(const std::string& job_id,
+                                               std::optional<int64_t> task, int limit) {
+    const int64_t id = ParseJobId(job_id);
+    std::lock_guard lock(mu_);
+    const JobRow job = LoadJob(id);
+    if (task && (*task < 0 || *task >= job.tasks_total))
+        ThrowError(ErrorCode::kInvalidArgument,
+                   fmt::format("{} has tasks 0..{}; there is no task {}", job_id,
+                               job.tasks_total - 1, *task));
+    if (limit <= 0) limit = 1000;
+    std::vector<v1::JobLogEntry> out;
+    for (const LogRow& r : store_.JobLog(id, task, std::min(limit, 100000))) {
+        v1::JobLogEntry& e = out.emplace_back();
+        e.set_at_unix_ms(r.at_ms);
+        e.set_kind(r.kind);
+        e.set_frame(r.frame);
+        e.set_stage(r.stage);
+        e.set_task_index(r.task_index);
+        e.set_task(r.task);
+        e.set_worker(r.worker);
+        e.set_attempt(r.attempt);
+        e.set_message(r.message);
+        e.set_log_tail(r.log_tail);
+    }
+    return out;
+}
+
+std::vector<std::string> Scheduler::JobsFinishedBefore(int64_t ms) {
+    std::lock_guard lock(mu_);
+    std::vector<std::string> out;
+    for (int64_t id : store_.JobsFinishedBefore(ms)) out.push_back(FormatJobId(id));
+    return out;
 }
 
 }  // namespace tessera

@@ -36,6 +36,7 @@
 // callbacks run after the scheduler's lock is released.
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -95,6 +96,35 @@ struct LeasedTask {
     std::shared_ptr<const v1::JobSpec> spec;
     int64_t deadline_ms = 0;
     std::vector<TaskInputRef> inputs;  // the artifacts of the stages it reads
+};
+
+// A worker's own totals, sent with its heartbeats (rates are derived from them).
+struct WorkerReport {
+    uint64_t samples_done = 0;
+    uint64_t rays_traced = 0;
+};
+
+// Tasks of queued and running jobs in one stage (by the stage's name in the plan:
+// "photons", "irradiance-2", "render"), by state.
+struct StageTaskCounts {
+    std::string stage;
+    int64_t waiting = 0, pending = 0, leased = 0, done = 0;
+};
+
+// Counters since the coordinator started, for /metrics.
+struct SchedulerCounters {
+    int64_t leases_granted = 0;
+    int64_t leases_expired = 0;
+    std::map<std::string, int64_t> completed_by_stage;  // by stage name
+    std::map<std::string, int64_t> failed_by_stage;     // FailTask calls
+    std::map<std::string, int64_t> expired_by_stage;
+};
+
+// What deleting a job leaves to the caller: the blobs it referenced, to remove those no
+// other job needs.
+struct DeletedJob {
+    std::vector<std::string> inputs;   // its bundle files and precomputed tables
+    std::vector<std::string> outputs;  // its task results and merged artifacts
 };
 
 struct HeartbeatReply {
@@ -180,8 +210,9 @@ class Scheduler {
     // is put aside).
     std::optional<LeasedTask> TryLease(const std::string& worker_id);
     // LeaseNotHeld for the current lease of another worker or with a wrong token.
+    // `report` (the worker's totals) updates its rates.
     HeartbeatReply Heartbeat(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-                             const std::string& lease_token);
+                             const std::string& lease_token, const WorkerReport& report = {});
     // Verifies that the caller holds the task's current lease (see Complete) and
     // returns what is needed to check the result before completing.
     LeaseCheck CheckLease(const std::string& worker_id, int64_t task_id, int64_t lease_id,
@@ -190,8 +221,10 @@ class Scheduler {
     // LeaseNotHeld: the caller is not its worker or the token is wrong.
     void Complete(const std::string& worker_id, int64_t task_id, int64_t lease_id,
                   const std::string& lease_token, const std::string& result_hash);
+    // `log_tail`: the worker's log lines for the task, kept with the failure.
     void Fail(const std::string& worker_id, int64_t task_id, int64_t lease_id,
-              const std::string& lease_token, const std::string& message);
+              const std::string& lease_token, const std::string& message,
+              const std::string& log_tail = {});
     // Names of the workers put aside now for failing too many tasks in a row.
     std::vector<std::string> WorkersPutAside();
     // How many times a worker was put aside since the coordinator started.
@@ -200,6 +233,13 @@ class Scheduler {
     int64_t UnfinishedTasks();
     // Every worker known since the coordinator started, by name.
     std::vector<v1::WorkerStatus> ListWorkers();
+    // A disabled worker finishes the tasks it holds and is leased no new ones; the
+    // setting is stored and survives restarts of the worker and the coordinator.
+    // `worker` is its name or worker id; NOT_FOUND if unknown.
+    v1::WorkerStatus SetWorkerEnabled(const std::string& worker, bool enabled);
+    // Tasks of queued and running jobs by stage and state; counters since start.
+    std::vector<StageTaskCounts> TaskCountsByStage();
+    SchedulerCounters Counters();
     // Gives back a lease that never reached its worker: re-queued and not counted.
     void Release(int64_t task_id, int64_t lease_id);
     // Re-queues expired leases and notes silent workers; returns leases expired.
@@ -220,6 +260,23 @@ class Scheduler {
     // Cancels a queued or running job (its leases are revoked); a finished job is left
     // as it is. Returns the status after.
     v1::JobStatus Cancel(const std::string& job_id);
+    // A queued or running job's tasks are leased in the new priority's order from now
+    // on; FAILED_PRECONDITION for a finished job.
+    v1::JobStatus SetPriority(const std::string& job_id, int priority);
+    // A FAILED or CANCELLED job is queued again: frames not written are re-opened, their
+    // dropped tasks pending again (or waiting for their inputs), done tasks keep their
+    // results, failure counts start afresh. FAILED_PRECONDITION for a DONE job ("nothing
+    // to retry") or an unfinished one.
+    v1::JobStatus Retry(const std::string& job_id);
+    // Removes the job and everything recorded of it (cancelling it first if need be).
+    DeletedJob Delete(const std::string& job_id);
+    // The job's log (oldest first): the last `limit` entries, of one task (its number in
+    // the job) if `task` is set. NOT_FOUND for an unknown job, INVALID_ARGUMENT for a
+    // task out of range.
+    std::vector<v1::JobLogEntry> JobLog(const std::string& job_id, std::optional<int64_t> task,
+                                        int limit);
+    // Finished jobs (DONE, FAILED, CANCELLED) that finished before `ms`.
+    std::vector<std::string> JobsFinishedBefore(int64_t ms);
 
     // --- merges
     StageMergeInput GetMergeInput(const std::string& job_id, int frame, int stage);
@@ -257,6 +314,8 @@ class Scheduler {
         int64_t job_id = 0;
         int64_t deadline_ms = 0;
         std::string token;
+        std::string stage;  // the task's stage name
+        std::string what;   // "job-7 frame 3 render 12/64", for people
     };
     struct Worker {
         std::string name;
@@ -265,6 +324,12 @@ class Scheduler {
         bool silent = false;
         int failures_in_a_row = 0;
         int64_t put_aside_until_ms = 0;  // 0: not put aside
+        bool disabled = false;           // by an operator
+        // Its reported totals, the last report's time and the rates derived from them.
+        WorkerReport report;
+        int64_t report_ms = 0;
+        double samples_per_second = 0, rays_per_second = 0;
+        int64_t tasks_done = 0, tasks_failed = 0;
     };
     // Immutable facts of a job, cached after first use.
     struct JobInfo {
@@ -312,6 +377,12 @@ class Scheduler {
     // and its leases revoked.
     void EndJob(int64_t job_id, int state, const std::string& error);
     v1::JobStatus BuildStatus(int64_t job_id);
+    // Appends to the job's log (inside the caller's transaction, if any). `task` (may be
+    // null) gives the frame, stage and task; `first_task_id` its number in the job.
+    void Log(int64_t job_id, const char* kind, const TaskRow* task, int64_t first_task_id,
+             const std::string& worker, int attempt, const std::string& message,
+             const std::string& log_tail = {});
+    v1::WorkerStatus WorkerStatusOf(int64_t id, const Worker& w, int64_t now);
 
     std::mutex mu_;
     const Clock& clock_;
@@ -320,6 +391,7 @@ class Scheduler {
     SchedulerListener* listener_ = nullptr;
     int64_t last_lease_id_ = 0;
     int64_t times_put_aside_ = 0;
+    SchedulerCounters counters_;
     std::string farm_problem_;
     std::unordered_map<int64_t, Lease> leases_;  // by task id: the outstanding leases
     std::unordered_map<int64_t, Worker> workers_;

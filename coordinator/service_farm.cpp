@@ -238,6 +238,72 @@ class FarmService final : public v1::Farm::CallbackService {
         return reactor;
     }
 
+    grpc::ServerUnaryReactor* SetJobPriority(grpc::CallbackServerContext* ctx,
+                                             const v1::SetJobPriorityRequest* req,
+                                             v1::JobStatus* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "priority of job '" + req->job_id() + "' set to " +
+                                    std::to_string(req->priority()));
+        reactor->Finish(Guarded(
+            [&] { *resp = c_.SetJobPriority(req->job_id(), req->priority(), caller.limits); }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* RetryJob(grpc::CallbackServerContext* ctx,
+                                       const v1::RetryJobRequest* req,
+                                       v1::JobStatus* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "retry of job '" + req->job_id() + "'");
+        reactor->Finish(Guarded([&] { *resp = c_.RetryJob(req->job_id()); }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* DeleteJob(grpc::CallbackServerContext* ctx,
+                                        const v1::DeleteJobRequest* req,
+                                        v1::DeleteJobResponse* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, "deletion of job '" + req->job_id() + "'");
+        // Removing blobs takes disk time: not on this thread.
+        submissions_.Post([this, req, resp, reactor] {
+            reactor->Finish(Guarded([&] { *resp = c_.DeleteJob(req->job_id()); }));
+        });
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* GetJobLog(grpc::CallbackServerContext* ctx,
+                                        const v1::GetJobLogRequest* req,
+                                        v1::GetJobLogResponse* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        reactor->Finish(Guarded([&] {
+            std::optional<int64_t> task;
+            if (req->has_task()) task = req->task();
+            for (v1::JobLogEntry& e : c_.JobLog(req->job_id(), task, req->limit()))
+                *resp->add_entries() = std::move(e);
+        }));
+        return reactor;
+    }
+
+    grpc::ServerUnaryReactor* SetWorkerEnabled(grpc::CallbackServerContext* ctx,
+                                               const v1::SetWorkerEnabledRequest* req,
+                                               v1::WorkerStatus* resp) override {
+        grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+        Caller caller;
+        if (!Admit(auth_, ctx, Role::kClient, reactor, &caller)) return reactor;
+        LogMutatingCall(caller, std::string(req->enabled() ? "enabling" : "disabling") +
+                                    " of worker '" + req->worker() + "'");
+        reactor->Finish(
+            Guarded([&] { *resp = c_.SetWorkerEnabled(req->worker(), req->enabled()); }));
+        return reactor;
+    }
+
   private:
     Coordinator& c_;
     const Authenticator& auth_;

@@ -115,7 +115,8 @@ class WorkersService final : public v1::Workers::CallbackService {
                       caller.peer);
         reactor->Finish(LeaseGuarded([&] {
             HeartbeatReply r =
-                c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token());
+                c_.Heartbeat(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
+                             {req->samples_done(), req->rays_traced()});
             resp->set_lease_valid(r.lease_valid);
             resp->set_cancelled(r.cancelled);
         }));
@@ -147,7 +148,7 @@ class WorkersService final : public v1::Workers::CallbackService {
                                     std::to_string(req->lease_id()) + ")");
         reactor->Finish(LeaseGuarded([&] {
             c_.FailTask(req->worker_id(), req->task_id(), req->lease_id(), req->lease_token(),
-                        req->message());
+                        req->message(), req->log_tail().substr(0, 8192));
         }));
         return reactor;
     }

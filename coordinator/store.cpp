@@ -1,5 +1,7 @@
 #include "store.h"
 
+#include <algorithm>
+
 #include "tessera/v1/tessera.pb.h"
 
 namespace tessera {
@@ -81,13 +83,31 @@ CREATE TABLE IF NOT EXISTS failures(
   message TEXT NOT NULL,
   attempt INTEGER NOT NULL,
   at_ms INTEGER NOT NULL,
-  stage TEXT NOT NULL DEFAULT '');
+  stage TEXT NOT NULL DEFAULT '',
+  log_tail TEXT NOT NULL DEFAULT '',
+  task INTEGER NOT NULL DEFAULT -1);
 CREATE INDEX IF NOT EXISTS failures_by_job ON failures(job_id, id);
 CREATE TABLE IF NOT EXISTS workers(
   id INTEGER PRIMARY KEY AUTOINCREMENT,
   name TEXT NOT NULL,
   threads INTEGER NOT NULL,
-  registered_ms INTEGER NOT NULL);
+  registered_ms INTEGER NOT NULL,
+  disabled INTEGER NOT NULL DEFAULT 0);
+CREATE TABLE IF NOT EXISTS job_log(
+  id INTEGER PRIMARY KEY,
+  job_id INTEGER NOT NULL,
+  at_ms INTEGER NOT NULL,
+  kind TEXT NOT NULL,
+  frame INTEGER NOT NULL,
+  stage TEXT NOT NULL,
+  task_index INTEGER NOT NULL,
+  task INTEGER NOT NULL,
+  worker TEXT NOT NULL,
+  attempt INTEGER NOT NULL,
+  message TEXT NOT NULL,
+  log_tail TEXT NOT NULL);
+CREATE INDEX IF NOT EXISTS job_log_by_job ON job_log(job_id, id);
+CREATE INDEX IF NOT EXISTS job_log_by_task ON job_log(job_id, task, id);
 )sql";
 
 constexpr const char* kJobColumns =
@@ -107,11 +127,18 @@ std::string Sql(const char* head, const char* columns, const char* tail) {
     return std::string(head) + columns + tail;
 }
 
-// Schema 3 added the tasks' lease tokens and the worker each last failed on.
-constexpr int kMigratableVersion = 2;
+// Schema 3 added the tasks' lease tokens and the worker each last failed on; schema 4
+// the failures' log tails and task numbers, the workers' disabled flag (and the job log,
+// a new table).
+constexpr int kOldestMigratableVersion = 2;
 constexpr const char* kMigrateFrom2 = R"sql(
 ALTER TABLE tasks ADD COLUMN lease_token TEXT NOT NULL DEFAULT '';
 ALTER TABLE tasks ADD COLUMN failed_worker_id INTEGER NOT NULL DEFAULT 0;
+)sql";
+constexpr const char* kMigrateFrom3 = R"sql(
+ALTER TABLE failures ADD COLUMN log_tail TEXT NOT NULL DEFAULT '';
+ALTER TABLE failures ADD COLUMN task INTEGER NOT NULL DEFAULT -1;
+ALTER TABLE workers ADD COLUMN disabled INTEGER NOT NULL DEFAULT 0;
 )sql";
 
 // A database of another layout is refused rather than misread: its jobs could not be
@@ -127,7 +154,8 @@ int64_t CheckSchemaVersion(SqliteDb& db, const std::string& path) {
     tables.Step();
     const bool has_jobs = tables.Int(0) > 0;
     tables.Reset();
-    if (v == Store::kSchemaVersion || v == kMigratableVersion || (v == 0 && !has_jobs)) return v;
+    if ((v >= kOldestMigratableVersion && v <= Store::kSchemaVersion) || (v == 0 && !has_jobs))
+        return v;
     throw std::runtime_error(
         path + " holds coordinator state of schema version " + std::to_string(v) +
         ", written by another version of the coordinator; this one reads version " +
@@ -160,10 +188,12 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     // Checkpoint() normally keeps the WAL short; this is only the fallback.
     db_.Exec("PRAGMA wal_autocheckpoint=20000");
     db_.Exec("PRAGMA foreign_keys=OFF");
-    if (CheckSchemaVersion(db_, path) == kMigratableVersion) {
-        // Leases outstanding across the upgrade keep an empty token (see Scheduler).
+    if (const int64_t version = CheckSchemaVersion(db_, path);
+        version != 0 && version < kSchemaVersion) {
         SqliteTransaction txn(db_);
-        db_.Exec(kMigrateFrom2);
+        // Leases outstanding across the upgrade from 2 keep an empty token (see Scheduler).
+        if (version <= 2) db_.Exec(kMigrateFrom2);
+        if (version <= 3) db_.Exec(kMigrateFrom3);
         txn.Commit();
     }
     db_.Exec(kSchema);
@@ -284,15 +314,19 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
 
     insert_failure_ = db_.Prepare(
         "INSERT INTO failures(job_id, frame, task_index, worker, message, attempt, at_ms, "
-        "stage) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+        "stage, log_tail, task) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)");
     recent_failures_ = db_.Prepare(
-        "SELECT frame, task_index, attempt, worker, message, stage FROM failures "
-        "WHERE job_id = ?1 ORDER BY id DESC LIMIT ?2");
+        "SELECT frame, task_index, attempt, worker, message, stage, log_tail, task "
+        "FROM failures WHERE job_id = ?1 ORDER BY id DESC LIMIT ?2");
     insert_worker_ =
         db_.Prepare("INSERT INTO workers(name, threads, registered_ms) VALUES(?1, ?2, ?3)");
     update_worker_ =
         db_.Prepare("UPDATE workers SET threads = ?2, registered_ms = ?3 WHERE id = ?1");
-    workers_ = db_.Prepare("SELECT id, name, threads FROM workers ORDER BY id");
+    workers_ = db_.Prepare("SELECT id, name, threads, disabled FROM workers ORDER BY id");
+    set_worker_disabled_ = db_.Prepare("UPDATE workers SET disabled = ?2 WHERE id = ?1");
+    insert_log_ = db_.Prepare(
+        "INSERT INTO job_log(job_id, at_ms, kind, frame, stage, task_index, task, worker, "
+        "attempt, message, log_tail) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
 }
 
 void Store::Checkpoint() {
@@ -674,7 +708,8 @@ std::vector<std::pair<int, std::string>> Store::StageResults(const StageRow& sta
 
 void Store::InsertFailure(int64_t job_id, const FailureRow& f, int64_t now_ms) {
     insert_failure_
-        .Bind(job_id, f.frame, f.task_index, f.worker, f.message, f.attempt, now_ms, f.stage)
+        .Bind(job_id, f.frame, f.task_index, f.worker, f.message, f.attempt, now_ms, f.stage,
+              f.log_tail, f.task)
         .Run();
 }
 
@@ -689,6 +724,8 @@ std::vector<FailureRow> Store::RecentFailures(int64_t job_id, int limit) {
         f.worker = recent_failures_.Text(3);
         f.message = recent_failures_.Text(4);
         f.stage = recent_failures_.Text(5);
+        f.log_tail = recent_failures_.Text(6);
+        f.task = recent_failures_.Int(7);
         out.push_back(std::move(f));
     }
     return out;
@@ -707,8 +744,133 @@ std::vector<WorkerRow> Store::Workers() {
     std::vector<WorkerRow> out;
     workers_.Bind();
     while (workers_.Step())
-        out.push_back({workers_.Int(0), workers_.Text(1), int(workers_.Int(2))});
+        out.push_back(
+            {workers_.Int(0), workers_.Text(1), int(workers_.Int(2)), workers_.Int(3) != 0});
     return out;
+}
+
+void Store::SetWorkerDisabled(int64_t id, bool disabled) {
+    set_worker_disabled_.Bind(id, disabled ? 1 : 0).Run();
+}
+
+void Store::InsertLog(const LogRow& e) {
+    insert_log_
+        .Bind(e.job_id, e.at_ms, e.kind, e.frame, e.stage, e.task_index, e.task, e.worker,
+              e.attempt, e.message, e.log_tail)
+        .Run();
+}
+
+std::vector<LogRow> Store::JobLog(int64_t job_id, std::optional<int64_t> task, int limit) {
+    // The last `limit` entries, read newest first and returned oldest first.
+    SqliteStatement q = db_.Prepare(
+        task ? "SELECT job_id, at_ms, kind, frame, stage, task_index, task, worker, attempt, "
+               "message, log_tail FROM job_log WHERE job_id = ?1 AND task = ?2 "
+               "ORDER BY id DESC LIMIT ?3"
+             : "SELECT job_id, at_ms, kind, frame, stage, task_index, task, worker, attempt, "
+               "message, log_tail FROM job_log WHERE job_id = ?1 ORDER BY id DESC LIMIT ?3");
+    if (task)
+        q.Bind(job_id, *task, limit);
+    else
+        q.Bind(job_id, int64_t(-1), limit);
+    std::vector<LogRow> out;
+    while (q.Step()) {
+        LogRow e;
+        e.job_id = q.Int(0);
+        e.at_ms = q.Int(1);
+        e.kind = q.Text(2);
+        e.frame = int(q.Int(3));
+        e.stage = q.Text(4);
+        e.task_index = int(q.Int(5));
+        e.task = q.Int(6);
+        e.worker = q.Text(7);
+        e.attempt = int(q.Int(8));
+        e.message = q.Text(9);
+        e.log_tail = q.Text(10);
+        out.push_back(std::move(e));
+    }
+    std::reverse(out.begin(), out.end());
+    return out;
+}
+
+void Store::SetJobPriority(int64_t job_id, int priority) {
+    const std::optional<JobRow> job = GetJob(job_id);
+    if (!job) return;
+    db_.Prepare("UPDATE jobs SET priority = ?2 WHERE id = ?1").Bind(job_id, priority).Run();
+    // The pending queue is ordered by the tasks' own copy of the priority.
+    db_.Prepare("UPDATE tasks SET priority = ?3 WHERE id BETWEEN ?1 AND ?2")
+        .Bind(job->first_task_id, job->first_task_id + job->tasks_total - 1, priority)
+        .Run();
+}
+
+void Store::ReopenJob(int64_t job_id) {
+    // A job that ran before runs on (its stages may need merging, frames assembling).
+    db_.Prepare(
+           "UPDATE jobs SET state = CASE WHEN started_ms > 0 THEN ?3 ELSE ?2 END, error = '', "
+           "finished_ms = 0 WHERE id = ?1")
+        .Bind(job_id, int(v1::JOB_STATE_QUEUED), int(v1::JOB_STATE_RUNNING))
+        .Run();
+    db_.Prepare("UPDATE frames SET state = ?2, started_ms = 0 WHERE job_id = ?1 AND state <> ?3")
+        .Bind(job_id, int(v1::FRAME_STATE_PENDING), int(v1::FRAME_STATE_DONE))
+        .Run();
+}
+
+int Store::ReopenTasks(int64_t first_task_id, int64_t last_task_id, TaskState state) {
+    db_.Prepare(
+           "UPDATE tasks SET state = ?3, failures = 0, failed_worker_id = 0, lease_id = 0, "
+           "lease_token = '' WHERE id BETWEEN ?1 AND ?2 AND state = 3")
+        .Bind(first_task_id, last_task_id, int(state))
+        .Run();
+    return int(db_.Changes());
+}
+
+void Store::DeleteJob(int64_t job_id, std::vector<std::string>* inputs,
+                      std::vector<std::string>* outputs) {
+    const std::optional<JobRow> job = GetJob(job_id);
+    if (!job) return;
+    v1::JobSpec spec;
+    if (spec.ParseFromString(GetJobSpec(job_id))) {
+        for (const v1::BundleFile& f : spec.files()) inputs->push_back(f.hash());
+        for (const v1::PrecomputedTable& t : spec.tables()) inputs->push_back(t.hash());
+    }
+    const int64_t first = job->first_task_id, last = job->first_task_id + job->tasks_total - 1;
+    SqliteStatement results = db_.Prepare(
+        "SELECT result_hash FROM tasks WHERE id BETWEEN ?1 AND ?2 AND result_hash <> ''");
+    results.Bind(first, last);
+    while (results.Step()) outputs->push_back(results.Text(0));
+    SqliteStatement artifacts =
+        db_.Prepare("SELECT artifact_hash FROM stages WHERE job_id = ?1 AND artifact_hash <> ''");
+    artifacts.Bind(job_id);
+    while (artifacts.Step()) outputs->push_back(artifacts.Text(0));
+    db_.Prepare("DELETE FROM tasks WHERE id BETWEEN ?1 AND ?2").Bind(first, last).Run();
+    for (const char* table : {"stages", "frames", "failures", "job_log"})
+        db_.Prepare(std::string("DELETE FROM ") + table + " WHERE job_id = ?1").Bind(job_id).Run();
+    db_.Prepare("DELETE FROM jobs WHERE id = ?1").Bind(job_id).Run();
+}
+
+std::vector<std::pair<std::string, std::array<int64_t, 5>>> Store::TaskCountsByStage(
+    int64_t first_task_id, int64_t last_task_id) {
+    SqliteStatement q = db_.Prepare(
+        "SELECT stage, state, COUNT(*) FROM tasks WHERE id BETWEEN ?1 AND ?2 "
+        "GROUP BY stage_index, stage, state ORDER BY stage_index");
+    q.Bind(first_task_id, last_task_id);
+    std::vector<std::pair<std::string, std::array<int64_t, 5>>> out;
+    while (q.Step()) {
+        const std::string stage = q.Text(0);
+        const int64_t state = q.Int(1);
+        if (out.empty() || out.back().first != stage) out.push_back({stage, {}});
+        if (state >= 0 && state < 5) out.back().second[state] += q.Int(2);
+    }
+    return out;
+}
+
+std::vector<int64_t> Store::JobsFinishedBefore(int64_t ms) {
+    SqliteStatement q = db_.Prepare(
+        "SELECT id FROM jobs WHERE state IN (?1, ?2, ?3) AND finished_ms > 0 AND finished_ms < ?4 "
+        "ORDER BY id");
+    q.Bind(int(v1::JOB_STATE_DONE), int(v1::JOB_STATE_FAILED), int(v1::JOB_STATE_CANCELLED), ms);
+    std::vector<int64_t> ids;
+    while (q.Step()) ids.push_back(q.Int(0));
+    return ids;
 }
 
 }  // namespace tessera

@@ -17,6 +17,7 @@
 // secret token (so that leases recovered after a restart keep it) and the worker it
 // last failed on (so that the scheduler can hand it to another one).
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -130,24 +131,42 @@ struct FailureRow {
     int frame = 0, task_index = 0, attempt = 0;
     std::string worker, message;
     std::string stage;
+    std::string log_tail;  // the worker's log lines for the task
+    int64_t task = -1;     // the task's number in its job
 };
 
 struct WorkerRow {
     int64_t id = 0;
     std::string name;
     int threads = 0;
+    bool disabled = false;  // by an operator: leased nothing
+};
+
+// One entry of a job's log (see v1::JobLogEntry).
+struct LogRow {
+    int64_t job_id = 0;
+    int64_t at_ms = 0;
+    std::string kind;
+    int frame = -1;
+    std::string stage;
+    int task_index = -1;
+    int64_t task = -1;  // the task's number in its job
+    std::string worker;
+    int attempt = 0;
+    std::string message;
+    std::string log_tail;
 };
 
 class Store {
   public:
     // The layout this code reads and writes (PRAGMA user_version).
-    static constexpr int kSchemaVersion = 3;
+    static constexpr int kSchemaVersion = 4;
 
     // Opens or creates the database, in WAL mode with synchronous=NORMAL: a commit is
     // in the WAL before the call returns, so it survives the process being killed.
     // Throws std::runtime_error for a database of another schema version (state from
-    // an older coordinator: start with a fresh state directory). Version 2 is upgraded
-    // in place.
+    // an older coordinator: start with a fresh state directory). Versions 2 and 3 are
+    // upgraded in place.
     explicit Store(const std::string& path);
 
     SqliteDb& Db() { return db_; }
@@ -242,6 +261,29 @@ class Store {
     // A worker registering again under a known id (a restarted process of the same name).
     void UpdateWorker(int64_t id, int threads, int64_t now_ms);
     std::vector<WorkerRow> Workers();
+    void SetWorkerDisabled(int64_t id, bool disabled);
+
+    // --- steering
+    void InsertLog(const LogRow& entry);
+    // The job's last `limit` entries (of one task if given), oldest first.
+    std::vector<LogRow> JobLog(int64_t job_id, std::optional<int64_t> task, int limit);
+    // The job's and its tasks' priority (the pending queue orders by the tasks').
+    void SetJobPriority(int64_t job_id, int priority);
+    // The job becomes QUEUED (RUNNING if it ever ran) without error or finish time; its
+    // frames not DONE become PENDING.
+    void ReopenJob(int64_t job_id);
+    // Dropped tasks in [first, last] become `state` (pending or waiting) with no
+    // failures counted; returns how many.
+    int ReopenTasks(int64_t first_task_id, int64_t last_task_id, TaskState state);
+    // Removes every row of the job; `inputs` gets the blobs of its bundle files and
+    // tables, `outputs` those of its task results and merged artifacts (with repeats).
+    void DeleteJob(int64_t job_id, std::vector<std::string>* inputs,
+                   std::vector<std::string>* outputs);
+    // Tasks in [first, last] by stage (in plan order) and state (indexed by TaskState).
+    std::vector<std::pair<std::string, std::array<int64_t, 5>>> TaskCountsByStage(
+        int64_t first_task_id, int64_t last_task_id);
+    // DONE, FAILED and CANCELLED jobs that finished before `ms`.
+    std::vector<int64_t> JobsFinishedBefore(int64_t ms);
 
   private:
     std::string path_;
@@ -262,7 +304,8 @@ class Store {
     SqliteStatement next_pending_, next_pending_avoiding_, get_task_, lease_task_, complete_task_,
         requeue_task_, release_task_, requeue_done_, uncount_stage_done_, uncount_frame_done_,
         uncount_job_done_, drop_tasks_, leased_tasks_, stage_results_;
-    SqliteStatement insert_failure_, recent_failures_, insert_worker_, update_worker_, workers_;
+    SqliteStatement insert_failure_, recent_failures_, insert_worker_, update_worker_, workers_,
+        set_worker_disabled_, insert_log_;
 };
 
 }  // namespace tessera

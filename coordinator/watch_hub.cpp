@@ -122,11 +122,20 @@ void WatchHub::Flush() {
         v1::JobEvent event;
         try {
             *event.mutable_status() = scheduler_.GetJob(job_id);
+            event.set_message(JoinMessages(messages));
+        } catch (const CoordinatorError& e) {
+            if (e.Code() != ErrorCode::kNotFound) {
+                spdlog::error("watch of {}: {}", job_id, e.what());
+                continue;
+            }
+            // Deleted: the watch ends with the job as cancelled, which it was.
+            event.mutable_status()->set_job_id(job_id);
+            event.mutable_status()->set_state(v1::JOB_STATE_CANCELLED);
+            event.set_message("job deleted");
         } catch (const std::exception& e) {
             spdlog::error("watch of {}: {}", job_id, e.what());
             continue;
         }
-        event.set_message(JoinMessages(messages));
         const bool last = IsFinished(event.status().state());
         for (JobWatcher* w : it->second) w->Deliver(event, last);
         if (last) {

@@ -9,8 +9,10 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <set>
 #include <tuple>
 
@@ -787,6 +789,33 @@ TEST_F(SchedulerTest, AWorkerFailingTooManyTasksInARowIsPutAsideForAWhile) {
     EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
 }
 
+// What schema 4 added to schema 3's tables (the job log is a table of its own).
+void DropSchemaFourColumns(SqliteDb& db) {
+    db.Exec("ALTER TABLE failures DROP COLUMN log_tail");
+    db.Exec("ALTER TABLE failures DROP COLUMN task");
+    db.Exec("ALTER TABLE workers DROP COLUMN disabled");
+    db.Exec("DROP TABLE job_log");
+}
+
+// State of schema 3 is upgraded in place: a worker can be disabled, failures keep their
+// log tails, the log starts.
+TEST_F(SchedulerTest, StateOfSchemaThreeIsUpgraded) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    scheduler_.reset();
+    {
+        SqliteDb old(DbPath());
+        DropSchemaFourColumns(old);
+        old.Exec("PRAGMA user_version = 3");
+    }
+    Open();
+    S().Fail(w, t.task_id, t.lease_id, t.lease_token, "boom", "last line");
+    EXPECT_EQ(S().GetJob(job).failures(0).log_tail(), "last line");
+    EXPECT_EQ(S().JobLog(job, std::nullopt, 0).back().kind(), "failed");
+    EXPECT_EQ(S().SetWorkerEnabled("alpha", false).state(), "disabled");
+}
+
 // State of schema 2 (no lease tokens) is upgraded in place; its outstanding leases keep
 // an empty token, which their (older) workers send.
 TEST_F(SchedulerTest, StateOfSchemaTwoIsUpgraded) {
@@ -798,6 +827,7 @@ TEST_F(SchedulerTest, StateOfSchemaTwoIsUpgraded) {
         SqliteDb old(DbPath());
         old.Exec("ALTER TABLE tasks DROP COLUMN lease_token");
         old.Exec("ALTER TABLE tasks DROP COLUMN failed_worker_id");
+        DropSchemaFourColumns(old);
         old.Exec("PRAGMA user_version = 2");
     }
     Open();
@@ -825,6 +855,253 @@ TEST_F(SchedulerTest, StateOfAnOlderSchemaIsRefusedClearly) {
         EXPECT_NE(std::string(e.what()).find("fresh --state directory"), std::string::npos)
             << e.what();
     }
+}
+
+// --- steering: priority, retry, delete, disabled workers, the job log, rates, counts
+
+TEST_F(SchedulerTest, PriorityChangeReordersThePendingQueue) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string first = S().AddJob(MakeJob("first", 0, 2));
+    std::string second = S().AddJob(MakeJob("second", 0, 2));
+    EXPECT_EQ(Lease(w).job_id, first);
+    v1::JobStatus st = S().SetPriority(second, 5);
+    EXPECT_EQ(st.priority(), 5);
+    for (int i = 0; i < 4; ++i) EXPECT_EQ(Lease(w).job_id, second) << "lease " << i;
+    EXPECT_EQ(Lease(w).job_id, first);
+    // A finished job's priority is refused, with the reason.
+    S().Cancel(first);
+    EXPECT_ERROR(S().SetPriority(first, 1), ErrorCode::kFailedPrecondition, "JOB_STATE_CANCELLED");
+    EXPECT_ERROR(S().SetPriority("job-999", 1), ErrorCode::kNotFound, "job-999");
+    const std::vector<v1::JobLogEntry> log = S().JobLog(second, std::nullopt, 0);
+    EXPECT_TRUE(std::any_of(log.begin(), log.end(), [](const v1::JobLogEntry& e) {
+        return e.kind() == "priority" && e.message() == "priority 0 -> 5";
+    }));
+}
+
+TEST_F(SchedulerTest, RetryRunsAFailedJobAgainKeepingItsDoneTasks) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));  // 2 tiles
+    LeasedTask done = Lease(w);
+    S().Complete(w, done.task_id, done.lease_id, done.lease_token, Hash('a'));
+    for (int i = 0; i < options_.max_attempts; ++i) {
+        LeasedTask t = Lease(w);
+        S().Fail(w, t.task_id, t.lease_id, t.lease_token, "bad node");
+    }
+    ASSERT_EQ(S().GetJob(job).state(), v1::JOB_STATE_FAILED);
+    EXPECT_ERROR(S().Retry("job-999"), ErrorCode::kNotFound, "job-999");
+
+    v1::JobStatus st = S().Retry(job);
+    EXPECT_EQ(st.state(), v1::JOB_STATE_RUNNING);  // it ran before
+    EXPECT_EQ(st.error(), "");
+    EXPECT_EQ(st.finished_unix_ms(), 0);
+    EXPECT_EQ(st.tasks_done(), 1);
+    EXPECT_EQ(st.frames(0).state(), v1::FRAME_STATE_PENDING);
+    EXPECT_ERROR(S().Retry(job), ErrorCode::kFailedPrecondition, "still running");
+    // Only the failed task runs again, and with its failures forgotten it may fail
+    // max_attempts - 1 more times without failing the job.
+    LeasedTask again = Lease(w);
+    EXPECT_NE(again.task_id, done.task_id);
+    S().Fail(w, again.task_id, again.lease_id, again.lease_token, "once more");
+    EXPECT_EQ(S().GetJob(job).state(), v1::JOB_STATE_RUNNING);
+    LeasedTask last = Lease(w);
+    EXPECT_FALSE(S().TryLease(w).has_value());
+    listener_.ready.clear();
+    S().Complete(w, last.task_id, last.lease_id, last.lease_token, Hash('b'));
+    ASSERT_EQ(listener_.ready.size(), 1u);
+    EXPECT_EQ(S().GetAssemblyInput(job, 1).results,
+              (std::vector<std::pair<int, std::string>>{{0, Hash('a')}, {1, Hash('b')}}));
+    S().FrameWritten(job, 1, "/out/shot.0001.exr");
+    EXPECT_ERROR(S().Retry(job), ErrorCode::kFailedPrecondition, "nothing to retry");
+}
+
+TEST_F(SchedulerTest, RetryOfACancelledStagedJobWaitsForItsMerges) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string job = S().AddJob(MakeStagedJob("staged"));
+    // Every photon batch done, the job cancelled before the merge.
+    for (int i = 0; i < 3; ++i) {
+        LeasedTask t = Lease(w);
+        ASSERT_EQ(t.stage, "photons");
+        S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('a' + i));
+    }
+    S().Cancel(job);
+    listener_.stages_ready.clear();
+    S().Retry(job);
+    // The merge that the cancel cut off is asked for again; nothing is leasable until then.
+    ASSERT_EQ(listener_.stages_ready.size(), 1u);
+    EXPECT_EQ(listener_.stages_ready[0], std::make_tuple(job, 1, 0));
+    EXPECT_FALSE(S().TryLease(w).has_value());
+    StageMergeInput in = S().GetMergeInput(job, 1, 0);
+    EXPECT_TRUE(in.job_running);
+    EXPECT_TRUE(in.ready);
+    S().StageMerged(job, 1, 0, Hash('p'), 1);
+    EXPECT_EQ(Lease(w).stage, "irradiance-1");
+}
+
+TEST_F(SchedulerTest, DeleteRemovesTheJobAndNamesItsBlobs) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    NewJob spec_job = MakeJob("shot", 0);
+    v1::JobSpec spec;
+    spec.ParseFromString(spec_job.spec);
+    v1::BundleFile* file = spec.add_files();
+    file->set_path("scene.json");
+    file->set_hash(Hash('s'));
+    spec_job.spec = spec.SerializeAsString();
+    std::string job = S().AddJob(spec_job);
+    std::string kept = S().AddJob(MakeJob("kept", 0));
+    LeasedTask t = Lease(w);
+    ASSERT_EQ(t.job_id, job);
+    S().Complete(w, t.task_id, t.lease_id, t.lease_token, Hash('r'));
+    LeasedTask running = Lease(w);
+    ASSERT_EQ(running.job_id, job);
+    // Deleting a running job cancels it first: its lease is gone.
+    DeletedJob deleted = S().Delete(job);
+    EXPECT_EQ(deleted.inputs, std::vector<std::string>{Hash('s')});
+    EXPECT_EQ(deleted.outputs, std::vector<std::string>{Hash('r')});
+    EXPECT_ERROR(S().GetJob(job), ErrorCode::kNotFound, job);
+    EXPECT_ERROR(S().JobLog(job, std::nullopt, 0), ErrorCode::kNotFound, job);
+    EXPECT_FALSE(
+        S().Heartbeat(w, running.task_id, running.lease_id, running.lease_token).lease_valid);
+    const std::vector<std::string> live = S().LiveBlobs();
+    EXPECT_EQ(std::count(live.begin(), live.end(), Hash('s')), 0);
+    EXPECT_EQ(std::count(live.begin(), live.end(), Hash('r')), 0);
+    ASSERT_EQ(S().ListJobs().size(), 1u);
+    EXPECT_EQ(S().ListJobs()[0].job_id(), kept);
+    EXPECT_EQ(Lease(w).job_id, kept);
+    EXPECT_ERROR(S().Delete(job), ErrorCode::kNotFound, job);
+}
+
+TEST_F(SchedulerTest, FinishedJobsAreFoundForRetention) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string old_job = S().AddJob(MakeJob("old", 0));
+    std::string running = S().AddJob(MakeJob("running", 0));
+    S().Cancel(old_job);
+    const int64_t cancelled_at = clock_.now;
+    clock_.now += 5000;
+    EXPECT_EQ(S().JobsFinishedBefore(cancelled_at), std::vector<std::string>{});
+    EXPECT_EQ(S().JobsFinishedBefore(cancelled_at + 1), std::vector<std::string>{old_job});
+    EXPECT_EQ(S().JobsFinishedBefore(clock_.now), std::vector<std::string>{old_job});
+    (void)w;
+    (void)running;
+}
+
+TEST_F(SchedulerTest, ADisabledWorkerFinishesItsTasksAndTakesNoMore) {
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0, 3));
+    LeasedTask held = Lease(a);
+    v1::WorkerStatus st = S().SetWorkerEnabled("alpha", false);
+    EXPECT_TRUE(st.disabled());
+    EXPECT_EQ(st.state(), "draining");
+    EXPECT_FALSE(S().TryLease(a).has_value());
+    // Its lease stays good: it may finish what it holds.
+    EXPECT_TRUE(S().Heartbeat(a, held.task_id, held.lease_id, held.lease_token).lease_valid);
+    S().Complete(a, held.task_id, held.lease_id, held.lease_token, Hash('a'));
+    EXPECT_EQ(S().ListWorkers()[0].state(), "disabled");
+    EXPECT_TRUE(S().TryLease(b).has_value());
+    // Stored: it stays disabled across a restart of the coordinator and of the worker.
+    Open();
+    S().RegisterWorker("alpha", 1);
+    EXPECT_FALSE(S().TryLease(a).has_value());
+    EXPECT_EQ(S().ListWorkers()[0].state(), "disabled");
+    // By id too; enabling wakes the long polls.
+    const int work = listener_.work;
+    EXPECT_FALSE(S().SetWorkerEnabled(a, true).disabled());
+    EXPECT_GT(listener_.work, work);
+    EXPECT_TRUE(S().TryLease(a).has_value());
+    EXPECT_ERROR(S().SetWorkerEnabled("gamma", false), ErrorCode::kNotFound, "gamma");
+    (void)job;
+}
+
+TEST_F(SchedulerTest, TheJobLogTellsEachTasksAttempts) {
+    std::string a = S().RegisterWorker("alpha", 1).worker_id;
+    std::string b = S().RegisterWorker("beta", 1).worker_id;
+    std::string job = S().AddJob(MakeJob("shot", 0));  // tasks 0 and 1
+    LeasedTask t = Lease(a);
+    S().Fail(a, t.task_id, t.lease_id, t.lease_token, "out of memory",
+             "[worker] loading scene\n[worker] allocating 64 GiB");
+    LeasedTask again = Lease(b);
+    ASSERT_EQ(again.task_id, t.task_id);
+    clock_.now += options_.lease_ms + 1;  // expires
+    S().Sweep();
+    LeasedTask third = Lease(b);
+    S().Complete(b, third.task_id, third.lease_id, third.lease_token, Hash('a'));
+
+    const std::vector<v1::JobLogEntry> log = S().JobLog(job, 0, 0);
+    std::vector<std::string> kinds;
+    for (const v1::JobLogEntry& e : log) {
+        kinds.push_back(e.kind() + " " + e.worker() + " " + std::to_string(e.attempt()));
+        EXPECT_EQ(e.task(), 0);
+        EXPECT_EQ(e.frame(), 1);
+        EXPECT_EQ(e.stage(), "render");
+    }
+    EXPECT_EQ(kinds, (std::vector<std::string>{"leased alpha 1", "failed alpha 1", "leased beta 2",
+                                               "expired beta 2", "leased beta 3", "done beta 3"}));
+    EXPECT_EQ(log[1].message(), "out of memory");
+    EXPECT_EQ(log[1].log_tail(), "[worker] loading scene\n[worker] allocating 64 GiB");
+    // The status's failure carries the tail and the task's number for `tessera logs`.
+    const v1::JobStatus st = S().GetJob(job);
+    ASSERT_EQ(st.failures_size(), 1);
+    EXPECT_EQ(st.failures(0).log_tail(), log[1].log_tail());
+    EXPECT_EQ(st.failures(0).task(), 0);
+    // The whole log starts with the submission; a limit keeps the latest entries.
+    const std::vector<v1::JobLogEntry> all = S().JobLog(job, std::nullopt, 0);
+    EXPECT_EQ(all.front().kind(), "submitted");
+    const std::vector<v1::JobLogEntry> last2 = S().JobLog(job, std::nullopt, 2);
+    ASSERT_EQ(last2.size(), 2u);
+    EXPECT_EQ(last2[1].kind(), all.back().kind());
+    EXPECT_ERROR(S().JobLog(job, 2, 0), ErrorCode::kInvalidArgument, "tasks 0..1");
+    EXPECT_ERROR(S().JobLog(job, -1, 0), ErrorCode::kInvalidArgument, "no task -1");
+}
+
+TEST_F(SchedulerTest, WorkerRatesComeFromItsReportedTotals) {
+    std::string w = S().RegisterWorker("alpha", 2).worker_id;
+    S().AddJob(MakeJob("shot", 0));
+    LeasedTask t = Lease(w);
+    S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token, {1000, 50000});
+    clock_.now += 500;
+    S().Heartbeat(w, t.task_id, t.lease_id, t.lease_token, {3000, 150000});
+    v1::WorkerStatus st = S().ListWorkers()[0];
+    EXPECT_DOUBLE_EQ(st.samples_per_second(), 4000.0);
+    EXPECT_DOUBLE_EQ(st.rays_per_second(), 200000.0);
+    EXPECT_EQ(st.samples_done(), 3000);
+    EXPECT_EQ(st.rays_traced(), 150000);
+    EXPECT_EQ(st.current_task(), t.job_id + " frame 1 render 1/2");
+    // A restarted worker's smaller totals start a new series, not a negative rate.
+    clock_.now += 500;
+    S().Heartbeat(w, 0, 0, "", {10, 100});
+    EXPECT_DOUBLE_EQ(S().ListWorkers()[0].samples_per_second(), 4000.0);
+    // Rates of a worker that stopped reporting go to zero.
+    clock_.now += options_.lease_ms + 1;
+    EXPECT_DOUBLE_EQ(S().ListWorkers()[0].samples_per_second(), 0.0);
+}
+
+TEST_F(SchedulerTest, TaskCountsByStageAndCounters) {
+    std::string w = S().RegisterWorker("alpha", 1).worker_id;
+    std::string staged = S().AddJob(MakeStagedJob("staged"));  // photons 3, irr 2+2, render 2
+    LeasedTask a = Lease(w);
+    LeasedTask b = Lease(w);
+    S().Complete(w, a.task_id, a.lease_id, a.lease_token, Hash('a'));
+    S().Fail(w, b.task_id, b.lease_id, b.lease_token, "boom");
+    LeasedTask c = Lease(w);
+    clock_.now += options_.lease_ms + 1;
+    S().Sweep();
+    std::map<std::string, StageTaskCounts> by_stage;
+    for (const StageTaskCounts& c : S().TaskCountsByStage()) by_stage[c.stage] = c;
+    EXPECT_EQ(by_stage["photons"].done, 1);
+    EXPECT_EQ(by_stage["photons"].pending, 2);
+    EXPECT_EQ(by_stage["photons"].leased, 0);
+    EXPECT_EQ(by_stage["irradiance-1"].waiting, 2);
+    EXPECT_EQ(by_stage["render"].waiting, 2);
+    const SchedulerCounters n = S().Counters();
+    EXPECT_EQ(n.leases_granted, 3);
+    EXPECT_EQ(n.leases_expired, 1);
+    EXPECT_EQ(n.completed_by_stage.at("photons"), 1);
+    EXPECT_EQ(n.failed_by_stage.at("photons"), 1);
+    EXPECT_EQ(n.expired_by_stage.at("photons"), 1);
+    // Finished jobs are not counted.
+    S().Cancel(staged);
+    EXPECT_TRUE(S().TaskCountsByStage().empty());
+    (void)c;
 }
 
 }  // namespace
