@@ -766,6 +766,100 @@ TEST_F(CoordinatorTest, GarbageCollectionKeepsWhatUnfinishedFramesNeed) {
                       StagedOverrides());
 }
 
+// Deleting a job removes its records, its bundle folder, its results, and its bundle's
+// blobs, but not a blob that another job's bundle shares; the written frame stays.
+TEST_F(CoordinatorTest, DeleteRemovesTheJobsBlobsButNotWhatAnotherJobNeeds) {
+    options_.gc_interval_ms = 0;
+    options_.gc_grace_ms = 0;
+    const std::string w = C().Register("w1", 1).worker_id;
+    v1::JobSpec spec = SceneSpec();
+    const std::string own = PutBlob("a texture only this job uses");
+    v1::BundleFile* extra = spec.add_files();
+    extra->set_path("shots/own.bin");
+    extra->set_hash(own);
+    extra->set_size(28);
+    const std::string job = C().SubmitJob(spec);
+    std::vector<std::string> results;
+    while (std::optional<LeasedTask> t = LeaseNow(w)) {
+        results.push_back(PutBlob(Render(*t)));
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, results.back());
+    }
+    ASSERT_EQ(WaitFinished(job).state(), v1::JOB_STATE_DONE);
+    const std::string exr = C().FrameFile(job, 0, false);
+    // A second job with the same scene file, still queued.
+    const std::string other = C().SubmitJob(SceneSpec());
+    ASSERT_TRUE(fs::is_directory(dir_ / "state" / "jobs" / job));
+
+    const v1::DeleteJobResponse r = C().DeleteJob(job);
+    EXPECT_GT(r.blobs_removed(), 0);
+    EXPECT_GT(r.bytes_removed(), 0u);
+    EXPECT_EQ(r.blobs_left_for_gc(), 0);
+    EXPECT_EQ(CodeOf([&] { C().GetJob(job); }), ErrorCode::kNotFound);
+    EXPECT_FALSE(C().Blobs().Has(own));
+    for (const std::string& h : results) EXPECT_FALSE(C().Blobs().Has(h)) << h;
+    EXPECT_TRUE(C().Blobs().Has(spec.files(0).hash())) << "the other job's scene was removed";
+    EXPECT_FALSE(fs::exists(dir_ / "state" / "jobs" / job));
+    EXPECT_TRUE(fs::is_regular_file(exr)) << "a written frame was removed";
+    EXPECT_EQ(C().GetJob(other).state(), v1::JOB_STATE_QUEUED);
+    EXPECT_EQ(CodeOf([&] { C().DeleteJob(job); }), ErrorCode::kNotFound);
+}
+
+// Finished jobs older than the retention go by themselves; newer and running ones stay.
+TEST_F(CoordinatorTest, RetentionDeletesOldFinishedJobs) {
+    options_.gc_interval_ms = 0;
+    options_.retention_ms = 0;
+    const std::string finished = C().SubmitJob(SceneSpec());
+    C().CancelJob(finished);
+    const std::string queued = C().SubmitJob(SceneSpec());
+    EXPECT_EQ(C().ApplyRetention(), 0) << "a retention of 0 keeps jobs for ever";
+    options_.retention_ms = 3600 * 1000;
+    Restart();
+    EXPECT_EQ(C().ApplyRetention(), 0) << "deleted before its time";
+    options_.retention_ms = 1;
+    Restart();
+    std::this_thread::sleep_for(5ms);
+    EXPECT_EQ(C().ApplyRetention(), 1);
+    EXPECT_EQ(CodeOf([&] { C().GetJob(finished); }), ErrorCode::kNotFound);
+    EXPECT_EQ(C().GetJob(queued).state(), v1::JOB_STATE_QUEUED);
+}
+
+// A staged job cancelled half-way and retried renders the local runner's image: what was
+// done before the cancel is kept and joined by what is done after.
+TEST_F(CoordinatorTest, ARetriedStagedJobRendersTheLocalImage) {
+    std::ofstream(scene_path_, std::ios::trunc) << kStagedScene;
+    v1::JobSpec spec = SceneSpec(kStagedScene);
+    *spec.mutable_options() = ToProto(StagedOverrides());
+    const std::string job = C().SubmitJob(spec);
+    const std::string w = C().Register("w1", 1).worker_id;
+    // The photon batches and the first irradiance task, then the cancel.
+    int done = 0;
+    for (auto until = std::chrono::steady_clock::now() + 120s;
+         std::chrono::steady_clock::now() < until;) {
+        std::optional<LeasedTask> t = LeaseNow(w, 100);
+        if (!t) continue;
+        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, PutBlob(Render(*t)));
+        if (t->stage != "photons") {
+            ++done;
+            break;
+        }
+    }
+    ASSERT_EQ(done, 1);
+    ASSERT_EQ(C().CancelJob(job).state(), v1::JOB_STATE_CANCELLED);
+    const int tasks_done = C().GetJob(job).tasks_done();
+    const v1::JobStatus retried = C().RetryJob(job);
+    EXPECT_EQ(retried.tasks_done(), tasks_done);
+    EXPECT_EQ(retried.frames(0).state(), v1::FRAME_STATE_PENDING);
+    while (true) {
+        RenderAll(w);
+        C().FrameWork().WaitIdle();
+        if (C().GetJob(job).state() != v1::JOB_STATE_RUNNING) break;
+    }
+    const v1::JobStatus st = WaitFinished(job);
+    ASSERT_EQ(st.state(), v1::JOB_STATE_DONE) << st.error();
+    EXPECT_EQ(st.leases_granted(), st.tasks_total()) << "a task done before the cancel ran again";
+    ExpectSameAsLocal((dir_ / "out" / job / "scene.0000.exr").string(), 0, StagedOverrides());
+}
+
 // Killed after the last photon batch completed, before the merge: the restarted
 // coordinator merges it, and the job goes on without any batch computed again.
 TEST_F(CoordinatorTest, RestartMergesAStageWhoseTasksWereAllDone) {
