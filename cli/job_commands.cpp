@@ -352,7 +352,8 @@ void AddJobCommands(CLI::App& app) {
                    : "Lease no more tasks to a worker (it finishes those it holds); stored, "
                      "so it lasts across restarts");
         sub->add_option("worker", workers->worker, "The worker's name (or id, w-N)")->required();
-        AddCoordinatorOption(*sub, workers->coordinator);
+        // `workers disable NAME --coordinator HOST`: the options are the parent's.
+        sub->fallthrough();
         sub->callback([workers, enable] { RunSetWorkerEnabled(*workers, enable); });
     }
     workers_cmd->callback([workers, workers_cmd] {
