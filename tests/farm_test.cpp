@@ -870,6 +870,92 @@ TEST_F(FarmTest, WorkerTakesTheCoordinatorFromTheEnvironment) {
 }
 
 // A coordinator address without a port means port 50051, for the worker and the CLI.
+// The steering commands end to end: a disabled worker takes nothing, a job's priority
+// changes, a cancelled job is retried and renders the local image, its log tells what
+// happened, it is deleted; the worker's reported totals reach `tessera workers`.
+TEST_F(FarmTest, SteeringCommandsDriveTheFarm) {
+    int port = StartCoordinator("state");
+    ASSERT_GT(port, 0);
+    const std::string address = "127.0.0.1:" + std::to_string(port);
+    StartWorker(port, "w1", 2);
+    Stubs s(port);
+    auto worker_state = [&](const std::string& name) {
+        v1::ListWorkersResponse r;
+        Ctx ctx;
+        s.farm->ListWorkers(&ctx, v1::ListWorkersRequest(), &r);
+        for (const v1::WorkerStatus& w : r.workers())
+            if (w.name() == name) return w;
+        return v1::WorkerStatus();
+    };
+    for (auto deadline = Clock::now() + 120s;
+         worker_state("w1").name().empty() && Clock::now() < deadline;)
+        std::this_thread::sleep_for(20ms);
+    ASSERT_FALSE(worker_state("w1").name().empty()) << "the worker never registered";
+    CliResult disable = Cli({"workers", "disable", "w1", "--coordinator", address});
+    ASSERT_EQ(disable.code, 0) << disable.err;
+    EXPECT_NE(disable.err.find("disabled"), std::string::npos) << disable.err;
+    CliResult unknown = Cli({"workers", "disable", "w9", "--coordinator", address});
+    EXPECT_EQ(unknown.code, 1);
+    EXPECT_NE(unknown.err.find("NOT_FOUND"), std::string::npos) << unknown.err;
+
+    CliResult submit = Cli(Concat({"submit", kCornell, "--coordinator", address}, kSmall));
+    ASSERT_EQ(submit.code, 0) << submit.err;
+    const std::string job = Trim(submit.out);
+    CliResult priority = Cli({"priority", job, "7", "--coordinator", address});
+    ASSERT_EQ(priority.code, 0) << priority.err;
+    // The worker, disabled, has leased nothing (it polls every few hundred ms).
+    std::this_thread::sleep_for(1500ms);
+    CliResult status = Cli({"status", job, "--coordinator", address});
+    EXPECT_NE(status.out.find("QUEUED"), std::string::npos) << status.out;
+    EXPECT_NE(status.out.find("priority   7"), std::string::npos) << status.out;
+    CliResult workers = Cli({"workers", "--coordinator", address});
+    EXPECT_NE(workers.out.find("disabled"), std::string::npos) << workers.out;
+
+    ASSERT_EQ(Cli({"cancel", job, "--coordinator", address}).code, 0);
+    CliResult retry = Cli({"retry", job, "--coordinator", address});
+    ASSERT_EQ(retry.code, 0) << retry.err;
+    ASSERT_EQ(Cli({"workers", "enable", "w1", "--coordinator", address}).code, 0);
+    CliResult watch = Cli({"watch", job, "--quiet", "--coordinator", address});
+    ASSERT_EQ(watch.code, 0) << watch.err;
+    fs::path out = dir_ / "frames";
+    ASSERT_EQ(Cli({"fetch", job, "-o", out.string(), "--coordinator", address}).code, 0);
+    ExpectSameImage(RenderLocal(kSmall), out / "cornell-box.0000.exr");
+    CliResult again = Cli({"retry", job, "--coordinator", address});
+    EXPECT_EQ(again.code, 1);
+    EXPECT_NE(again.err.find("FAILED_PRECONDITION"), std::string::npos) << again.err;
+
+    // The worker sends its totals with its next heartbeats: 64 x 64 pixels x 4 samples,
+    // and the rays they took.
+    for (auto deadline = Clock::now() + 60s;
+         worker_state("w1").samples_done() < 64 * 64 * 4 && Clock::now() < deadline;)
+        std::this_thread::sleep_for(50ms);
+    const v1::WorkerStatus w1 = worker_state("w1");
+    EXPECT_GE(w1.samples_done(), 64 * 64 * 4);
+    EXPECT_GT(w1.rays_traced(), w1.samples_done());
+    EXPECT_EQ(w1.tasks_done(), 16);
+
+    CliResult logs = Cli({"logs", job, "--coordinator", address});
+    ASSERT_EQ(logs.code, 0) << logs.err;
+    for (const char* kind :
+         {"submitted", "priority", "cancelled", "retried", "leased", "done", "frame", "job-done"})
+        EXPECT_NE(logs.out.find(std::string("  ") + kind + " "), std::string::npos) << kind << "\n"
+                                                                                    << logs.out;
+    CliResult task = Cli({"logs", job, "--task", "3", "--coordinator", address});
+    ASSERT_EQ(task.code, 0) << task.err;
+    EXPECT_NE(task.out.find("task 3 (frame 0 render 3) on w1 attempt 1"), std::string::npos)
+        << task.out;
+    EXPECT_EQ(task.out.find("task 4"), std::string::npos) << task.out;
+
+    CliResult del = Cli({"delete", job, "--coordinator", address});
+    ASSERT_EQ(del.code, 0) << del.err;
+    EXPECT_NE(del.err.find("deleted"), std::string::npos) << del.err;
+    CliResult gone = Cli({"status", job, "--coordinator", address});
+    EXPECT_EQ(gone.code, 1);
+    EXPECT_NE(gone.err.find("NOT_FOUND"), std::string::npos) << gone.err;
+    EXPECT_TRUE(fs::exists(dir_ / "state-frames" / job / "cornell-box.0000.exr"))
+        << "delete removed a written frame";
+}
+
 TEST(CoordinatorAddress, HostAloneMeansTheDefaultPort) {
     EXPECT_EQ(WithDefaultPort("farm.example.com"), "farm.example.com:50051");
     EXPECT_EQ(WithDefaultPort("127.0.0.1"), "127.0.0.1:50051");

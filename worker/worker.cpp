@@ -11,7 +11,10 @@
 
 #include "backoff.h"
 #include "blob_client.h"
+#include "log_tail.h"
 #include "plan/render_plan.h"
+#include "scene/ray_counter.h"
+#include "task_samples.h"
 
 namespace tessera {
 
@@ -27,6 +30,9 @@ struct Worker::Active {
     // and a heartbeat racing with it would only find the lease already released.
     std::atomic<bool> reporting{false};
     std::atomic<float> progress{0};
+    // Where its log lines come from (LogTail::Lines): set when its render thread starts it.
+    spdlog::log_clock::time_point started;
+    size_t thread = 0;
 };
 
 namespace {
@@ -100,6 +106,8 @@ Worker::Worker(WorkerOptions options, v1::Workers::StubInterface& workers,
 Worker::~Worker() = default;
 
 void Worker::Run() {
+    // Before the threads below log: it replaces the default logger.
+    log_tail_ = &InstallLogTail();
     {
         std::lock_guard lock(registering_mutex_);
         if (!Register(true)) return;
@@ -330,6 +338,8 @@ grpc::Status Worker::Heartbeat(const std::shared_ptr<Active>& task) {
         req.set_lease_token(task->task.lease_token());
         req.set_progress(task->progress.load());
     }
+    req.set_samples_done(samples_done_.load());
+    req.set_rays_traced(RaysTraced());
     v1::HeartbeatResponse resp;
     grpc::Status st = workers_.Heartbeat(&ctx, req, &resp);
     if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
@@ -360,6 +370,8 @@ bool Worker::Dropped(const Active& task, const char* when) {
 
 void Worker::RunTask(const std::shared_ptr<Active>& task, ScratchBuffer& arena) {
     const v1::Task& t = task->task;
+    task->started = spdlog::log_clock::now();
+    task->thread = LogTail::ThisThread();
     std::shared_ptr<const FrameRenderer> renderer;
     int stage = -1;
     ArtifactSet artifacts;
@@ -381,6 +393,7 @@ void Worker::RunTask(const std::shared_ptr<Active>& task, ScratchBuffer& arena) 
     try {
         arena.Reset();
         result = renderer->RunTask(stage, t.task_index(), artifacts, arena);
+        samples_done_ += SamplesOfTask(renderer->Plan(), stage, t.task_index());
     } catch (const std::exception& e) {
         Fail(*task,
              fmt::format("running {} task {} failed: {}", t.stage(), t.task_index(), e.what()));
@@ -517,6 +530,9 @@ void Worker::Complete(Active& task, const std::string& result) {
 void Worker::Fail(Active& task, std::string message) {
     const v1::Task& t = task.task;
     if (message.size() > kMaxFailureMessage) message.resize(kMaxFailureMessage);
+    // Before the line below, which says what the message says.
+    const std::string log_tail =
+        log_tail_ ? log_tail_->Lines(task.started, task.thread, Describe(t)) : std::string();
     spdlog::error("{} failed: {}", Describe(t), message);
     ++failed_;
     if (task.abandoned) return;  // the lease is gone: nobody would accept the report
@@ -531,6 +547,7 @@ void Worker::Fail(Active& task, std::string message) {
             req.set_lease_id(t.lease_id());
             req.set_lease_token(t.lease_token());
             req.set_message(message);
+            req.set_log_tail(log_tail);
             v1::FailTaskResponse resp;
             return workers_.FailTask(&ctx, req, &resp);
         });

@@ -23,12 +23,17 @@
 // completion refused as stale (FAILED_PRECONDITION) is logged and dropped.
 //
 // Failures: anything thrown while preparing or rendering a task is reported with
-// FailTask, prefixed by the step that failed; the worker goes on with the next task.
+// FailTask, prefixed by the step that failed, with the lines the worker logged for the
+// task (log_tail.h); the worker goes on with the next task.
 // Unreachable coordinator (UNAVAILABLE, DEADLINE_EXCEEDED, CANCELLED): calls are retried
 // with jittered exponential backoff (100 ms doubling to 5 s); a task's calls keep trying
 // while its lease may still be valid (a restarted coordinator recovers leases), until
 // a heartbeat says otherwise, 10 minutes pass, or 10 s after Stop(). NOT_FOUND for the
 // worker id (a coordinator that lost its worker table) makes the worker register again.
+//
+// Statistics: every heartbeat carries the worker's totals since it started: the samples
+// of the tasks it rendered (task_samples.h) and the rays the process traced
+// (scene/ray_counter.h); the coordinator derives rates from them.
 //
 // Stop() (SIGTERM/SIGINT): no more leasing; tasks in flight finish and complete; then
 // Run() returns.
@@ -50,6 +55,8 @@
 #include "tessera/v1/tessera.grpc.pb.h"
 
 namespace tessera {
+
+class LogTail;
 
 struct WorkerOptions {
     std::string name;                 // unique per live worker
@@ -143,7 +150,9 @@ class Worker {
     std::atomic<bool> stopping_{false};
     std::atomic<std::chrono::steady_clock::rep> stop_requested_{0};  // steady_clock ticks
     std::atomic<int> completed_{0}, failed_{0}, dropped_{0};
-    std::atomic<uint64_t> reconnects_{0};  // heartbeats got through again after failing
+    std::atomic<uint64_t> reconnects_{0};    // heartbeats got through again after failing
+    std::atomic<uint64_t> samples_done_{0};  // of the tasks rendered, for the heartbeats
+    LogTail* log_tail_ = nullptr;            // the process's (InstallLogTail), set by Run()
 
     // Registration: one at a time; the fields are read by every thread.
     std::mutex registering_mutex_;

@@ -5,6 +5,7 @@
 
 #include "light/area_light.h"
 #include "scene/embree_scene.h"
+#include "scene/ray_counter.h"
 
 namespace tessera {
 
@@ -231,8 +232,6 @@ size_t Scene::NumTriangles() const {
 
 namespace {
 
-thread_local uint64_t t_ray_count = 0;
-
 // Fills the hit at barycentrics (u, v) on the triangle p[0..2], with per-vertex normals
 // and uvs when given (else null).
 void ShadeTriangleVertices(const Vec3 p[3], const Vec3* n, const Vec2* uv, float u, float v,
@@ -308,10 +307,10 @@ Transform InstanceTransformAt(const std::vector<Transform>& steps, float time) {
 
 }  // namespace
 
-uint64_t Scene::ThreadRayCount() { return t_ray_count; }
+uint64_t Scene::ThreadRayCount() { return ThreadRaysTraced(); }
 
 bool Scene::Intersect(const Ray& ray, SurfaceInteraction* si, float t_max) const {
-    ++t_ray_count;
+    CountRays();
     RawHit hit;
     if (!embree_->Intersect(ray, t_max, &hit)) return false;
     si->t = hit.t;
@@ -367,7 +366,7 @@ bool Scene::IntersectRaw(const Ray& ray, float* t) const {
 }
 
 bool Scene::Occluded(const Vec3& p0, const Vec3& p1, float time) const {
-    ++t_ray_count;
+    CountRays();
     Ray ray{p0, p1 - p0, time};
     return embree_->Occluded(ray, 1 - 1e-4f);
 }
@@ -379,13 +378,13 @@ bool Scene::Occluded(const Vec3& p0, const Vec3& p1, const Light* light, float t
     // The band SphereAreaLight::SampleLi samples by area (area_light.cpp).
     if (DistanceSquared(p0, sphere.center) <= Sqr(sphere.radius) * 1.0001f)
         return Occluded(p0, p1, time);
-    ++t_ray_count;
+    CountRays();
     Ray ray{p0, p1 - p0, time};
     return embree_->OccludedIgnoring(ray, 1 - 1e-4f, sphere.geometry);
 }
 
 bool Scene::OccludedRay(const Ray& ray, float t_max) const {
-    ++t_ray_count;
+    CountRays();
     return embree_->Occluded(ray, t_max);
 }
 
