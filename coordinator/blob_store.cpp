@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -38,13 +39,31 @@ BlobStore::BlobStore(std::string root, uint64_t max_blob_bytes)
         const fs::path shard = fs::path(root_) / std::string{kHex[i >> 4], kHex[i & 15]};
         fs::create_directories(shard);
         for (const fs::directory_entry& e : fs::directory_iterator(shard)) {
+            std::error_code ec;
             if (e.path().extension() == ".tmp") {  // left by a crash mid-upload
-                std::error_code ec;
                 fs::remove(e.path(), ec);
+            } else if (IsSha256Hex(e.path().filename().string())) {
+                const uint64_t size = e.file_size(ec);
+                if (!ec) Counted(+1, size);
             }
         }
     }
     FsyncPath(root_);
+}
+
+void BlobStore::Counted(int blobs, uint64_t bytes) const {
+    if (blobs > 0) {
+        blob_count_.fetch_add(1, std::memory_order_relaxed);
+        blob_bytes_.fetch_add(bytes, std::memory_order_relaxed);
+    } else {
+        blob_count_.fetch_sub(1, std::memory_order_relaxed);
+        blob_bytes_.fetch_sub(bytes, std::memory_order_relaxed);
+    }
+}
+
+BlobStore::Usage BlobStore::CurrentUsage() const {
+    return {blob_count_.load(std::memory_order_relaxed),
+            blob_bytes_.load(std::memory_order_relaxed)};
 }
 
 void BlobStore::CheckHash(std::string_view hash) {
@@ -121,8 +140,9 @@ std::string BlobStore::ReadVerified(const std::string& hash) {
     // Damaged (an unsynced blob after an OS crash, or the disk): remove it so that a good
     // copy can be stored again, unless a writer has renamed one into place meanwhile.
     struct stat now;
-    if (::stat(path.c_str(), &now) == 0 && now.st_ino == st.st_ino && now.st_dev == st.st_dev)
-        ::unlink(path.c_str());
+    if (::stat(path.c_str(), &now) == 0 && now.st_ino == st.st_ino && now.st_dev == st.st_dev &&
+        ::unlink(path.c_str()) == 0)
+        Counted(-1, static_cast<uint64_t>(now.st_size));
     ThrowError(ErrorCode::kDataLoss, "blob " + hash + " is damaged (its " +
                                          std::to_string(bytes.size()) + " bytes hash to " + actual +
                                          "); removed it");
@@ -177,7 +197,11 @@ bool BlobStore::Remove(const std::string& hash, double min_age_s) const {
     const double age =
         std::chrono::duration<double>(fs::file_time_type::clock::now() - written).count();
     if (age < min_age_s) return false;
-    return ::unlink(path.c_str()) == 0;
+    // Blobs are never modified, so the size read before the unlink is the one removed.
+    const std::optional<uint64_t> size = Size(hash);
+    if (!size || ::unlink(path.c_str()) != 0) return false;
+    Counted(-1, *size);
+    return true;
 }
 
 void BlobStore::Materialize(const std::string& hash, const std::string& dest) const {
@@ -305,13 +329,24 @@ bool BlobWriter::Commit() {
         store_.CheckSpace(close_error, "cannot write blob " + hash_);
     }
     const std::string final_path = store_.PathOf(hash_);
-    if (::rename(temp_path_.c_str(), final_path.c_str()) != 0) {
+    // Not over a copy that a racing writer of the same blob renamed into place first:
+    // then the blob was already present, and the running count sees it once.
+    int renamed =
+        ::renameat2(AT_FDCWD, temp_path_.c_str(), AT_FDCWD, final_path.c_str(), RENAME_NOREPLACE);
+    if (renamed != 0 && errno == EEXIST) {
+        Discard();
+        return false;
+    }
+    if (renamed != 0 && (errno == EINVAL || errno == ENOSYS))  // not supported here
+        renamed = ::rename(temp_path_.c_str(), final_path.c_str());
+    if (renamed != 0) {
         const int error = errno;
         std::string why = ErrnoText();
         Discard();
         store_.CheckSpace(error, "cannot store blob " + hash_);
         ThrowError(ErrorCode::kInternal, "cannot store blob " + hash_ + ": " + why);
     }
+    store_.Counted(+1, size_);
     temp_path_.clear();
     closed_ = true;
     if (durable) FsyncPath(fs::path(final_path).parent_path().string());

@@ -15,7 +15,13 @@
 //
 // A write that fails for lack of space (ENOSPC, EDQUOT) throws NoSpaceError naming the
 // store's folder, after telling the no-space listener, whoever the caller is.
+//
+// The store keeps a running count of its blobs and their bytes for /metrics: counted
+// once at start-up (the same walk that removes temporaries), then adjusted by every blob
+// this store commits or removes. Files added or deleted behind its back are not seen
+// until the next start.
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -84,6 +90,13 @@ class BlobStore {
     std::vector<Entry> List() const;
     bool Remove(const std::string& hash, double min_age_s = 0) const;
 
+    // What the store holds now (see the running count above).
+    struct Usage {
+        uint64_t blobs = 0;
+        uint64_t bytes = 0;
+    };
+    Usage CurrentUsage() const;
+
     uint64_t MaxBlobBytes() const { return max_blob_bytes_; }
     const std::string& Root() const { return root_; }
 
@@ -98,10 +111,15 @@ class BlobStore {
     // Throws NoSpaceError if `error` (an errno) means the disk is full, after telling the
     // listener; returns otherwise.
     void CheckSpace(int error, const std::string& detail) const;
+    // Keeps the running count: a blob of `bytes` appeared (+1) or went (-1).
+    void Counted(int blobs, uint64_t bytes) const;
 
     std::string root_;
     uint64_t max_blob_bytes_;
     std::function<void(const NoSpaceError&)> no_space_listener_;
+    // The running count; mutable because removals and commits go through const paths.
+    mutable std::atomic<uint64_t> blob_count_{0};
+    mutable std::atomic<uint64_t> blob_bytes_{0};
 };
 
 class BlobWriter {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <vector>
 
 #include "assembler.h"
@@ -92,6 +93,21 @@ size_t FrameWorkQueue::WaitingForSpace() {
     return waiting_for_space_.size();
 }
 
+void FrameWorkQueue::SetTimingObserver(TimingObserver observer) {
+    std::lock_guard lock(observer_mu_);
+    observer_ = std::move(observer);
+}
+
+void FrameWorkQueue::Observe(const FrameWorkTiming& timing) {
+    std::lock_guard lock(observer_mu_);
+    if (!observer_) return;
+    try {
+        observer_(timing);
+    } catch (const std::exception& e) {
+        spdlog::warn("the frame work observer failed: {}", e.what());
+    }
+}
+
 void FrameWorkQueue::Run() {
     std::unique_lock lock(mu_);
     while (true) {
@@ -142,11 +158,11 @@ void FrameWorkQueue::Merge(const std::string& job_id, int frame, int stage) {
         // Durable before it is recorded: later stages read it, and nothing could make it
         // again once their tasks have run.
         blobs_.Put(hash, artifact, Durability::kDurable);
-        spdlog::info(
-            "job {} frame {}: merged {} results of {} into {} bytes in {:.0f} ms", job_id, frame,
-            input.results.size(), name, artifact.size(),
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                .count());
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        spdlog::info("job {} frame {}: merged {} results of {} into {} bytes in {:.0f} ms", job_id,
+                     frame, input.results.size(), name, artifact.size(), seconds * 1000);
+        Observe({FrameWorkTiming::kStageMerge, name, seconds});
         scheduler_.StageMerged(job_id, frame, stage, hash, artifact.size());
     } catch (const UnreadableResults& e) {
         spdlog::warn("job {} frame {} stage {}: {}; running those tasks again", job_id, frame,
@@ -175,7 +191,11 @@ void FrameWorkQueue::Assemble(const std::string& job_id, int frame) {
                          frame);
             return;
         }
+        const auto start = std::chrono::steady_clock::now();
         std::string exr = WriteFrame(input, blobs_, output_dir_, clock_.NowMs());
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        Observe({FrameWorkTiming::kFrameAssembly, {}, seconds});
         scheduler_.FrameWritten(job_id, frame, exr);
     } catch (const UnreadableResults& e) {
         spdlog::warn("job {} frame {}: {}; rendering those tiles again", job_id, frame, e.what());

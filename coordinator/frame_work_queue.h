@@ -18,9 +18,15 @@
 // DiskSpaceMonitor and set aside, and while the farm is out of space no item runs; when
 // space returns (Resume) the items set aside are queued again. Any other error fails
 // the job.
+//
+// An observer (SetTimingObserver; /metrics sets one) hears how long each merge and each
+// frame write took: the work itself (merging and storing the artifact; writing the EXR and
+// its preview), measured on a monotonic clock, for the ones that succeeded; it hears of
+// one before it is recorded, so a frame that is DONE has been heard of.
 
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <set>
 #include <string>
@@ -33,8 +39,17 @@
 
 namespace tessera {
 
+// What an observer of the queue's timings hears.
+struct FrameWorkTiming {
+    enum Kind { kStageMerge, kFrameAssembly } kind = kFrameAssembly;
+    std::string stage;  // the merged stage's name ("photons", "irradiance-2"); empty for a frame
+    double seconds = 0;
+};
+
 class FrameWorkQueue {
   public:
+    using TimingObserver = std::function<void(const FrameWorkTiming&)>;
+
     FrameWorkQueue(Scheduler& scheduler, BlobStore& blobs, std::string output_dir,
                    const Clock& clock, DiskSpaceMonitor& space);
     ~FrameWorkQueue();
@@ -55,6 +70,9 @@ class FrameWorkQueue {
     void Resume();
     // Items set aside until space returns.
     size_t WaitingForSpace();
+    // Replaces the observer (none: an empty function). It is called on the queue's
+    // thread, never after this returns, so its owner may go once it has cleared it.
+    void SetTimingObserver(TimingObserver observer);
 
   private:
     static constexpr int kAssemble = -1;             // the "stage" of an assembly item
@@ -67,6 +85,7 @@ class FrameWorkQueue {
     void Merge(const std::string& job_id, int frame, int stage);
     void Assemble(const std::string& job_id, int frame);
     void FailJob(const std::string& job_id, const std::string& message);
+    void Observe(const FrameWorkTiming& timing);
 
     Scheduler& scheduler_;
     BlobStore& blobs_;
@@ -81,6 +100,8 @@ class FrameWorkQueue {
     bool busy_ = false;
     bool stop_ = false;
     std::thread thread_;
+    std::mutex observer_mu_;  // held while the observer is called
+    TimingObserver observer_;
 };
 
 }  // namespace tessera

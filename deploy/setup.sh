@@ -21,6 +21,8 @@ PACKAGES=(
   python3-yaml ffmpeg
   python3-grpcio python3-protobuf
   clang libclang-rt-dev ninja-build
+  libcpp-httplib-dev prometheus-cpp-dev
+  chromium chromium-driver python3-selenium
 )
 
 missing=()
