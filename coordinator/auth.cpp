@@ -186,6 +186,27 @@ grpc::Status Authenticator::CheckAnyRole(const grpc::ServerContextBase& context,
     return Check(context, entry->role, caller);
 }
 
+grpc::Status Authenticator::CheckToken(std::string_view token, Role role, Caller* caller) const {
+    caller->role = role;
+    if (tokens_.empty()) {
+        caller->name = "anyone";
+        return grpc::Status::OK;
+    }
+    if (token.empty())
+        return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "this coordinator needs a token");
+    auto entry = tokens_.find(Sha256Hex(token));
+    if (entry == tokens_.end())
+        return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "unknown token");
+    caller->name = entry->second.name;
+    caller->limits = entry->second.limits;
+    if (entry->second.role != role)
+        return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                            std::string("a ") + RoleName(entry->second.role) + " token ('" +
+                                entry->second.name + "') may not make " + RoleName(role) +
+                                " calls");
+    return grpc::Status::OK;
+}
+
 const Authenticator& OpenAccess() {
     static const Authenticator open;
     return open;

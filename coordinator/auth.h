@@ -24,6 +24,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "token_limits.h"
 
@@ -60,6 +61,9 @@ class Authenticator {
     grpc::Status Check(const grpc::ServerContextBase& context, Role role, Caller* caller) const;
     // The same for calls both roles may make (blob uploads): the token decides the role.
     grpc::Status CheckAnyRole(const grpc::ServerContextBase& context, Caller* caller) const;
+    // The same for a bare token from another transport (the dashboard's HTTP requests):
+    // `caller`'s name, role and limits are filled in; its peer is left to the caller.
+    grpc::Status CheckToken(std::string_view token, Role role, Caller* caller) const;
 
   private:
     struct Entry {

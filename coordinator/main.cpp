@@ -54,6 +54,12 @@ int main(int argc, char** argv) {
                    "How often blobs nothing needs any more are removed (0: never)")
         ->capture_default_str()
         ->check(tessera::InRange(0, 7 * 24 * 3600));
+    double retention_days = c.retention_ms / (24 * 3600 * 1000.0);
+    app.add_option("--retention-days", retention_days,
+                   "Finished jobs are deleted (records, bundle, blobs; not their frames) this "
+                   "long after they finished, checked with each garbage collection (0: never)")
+        ->capture_default_str()
+        ->check(tessera::InRange(0.0, 36500.0));
     app.add_option("--gc-grace-s", gc_grace_s,
                    "Blobs written or touched this recently are kept (uploads in flight)")
         ->capture_default_str()
@@ -96,6 +102,23 @@ int main(int argc, char** argv) {
         ->capture_default_str()
         ->check(tessera::InRange(1, 1000000));
     app.add_option("--port-file", o.port_file, "Write the bound port here once serving");
+    app.add_option("--http-listen", o.http_listen,
+                   "Serve the web dashboard and its JSON API on HOST:PORT (port 0: any free "
+                   "port); off loopback only with TLS and tokens (docs/dashboard.md)")
+        ->transform(CLI::Validator(
+            [](std::string& text) -> std::string {
+                // HOST alone would get the gRPC port (HostAndPort): the port must be given.
+                const size_t colon = text.rfind(':');
+                const bool has_port =
+                    colon != std::string::npos && colon + 1 < text.size() &&
+                    text.find_first_not_of("0123456789", colon + 1) == std::string::npos &&
+                    (text.find(':') == colon || text[colon - 1] == ']');
+                if (!has_port) return "must be HOST:PORT, e.g. 127.0.0.1:8080";
+                return tessera::HostAndPort()(text);
+            },
+            "HOST:PORT"));
+    app.add_option("--http-port-file", o.http_port_file,
+                   "Write the dashboard's bound port here once it serves");
     tessera::ListenSecurity& sec = o.security;
     app.add_option("--tls-cert", sec.tls_cert_file, "PEM server certificate (chain): serve TLS")
         ->envname("TESSERA_TLS_CERT")
@@ -124,6 +147,7 @@ int main(int argc, char** argv) {
     c.scheduler.put_aside_ms = put_aside_s * 1000;
     c.gc_interval_ms = gc_interval_s * 1000;
     c.gc_grace_ms = gc_grace_s * 1000;
+    c.retention_ms = static_cast<int64_t>(retention_days * 24 * 3600 * 1000);
     spdlog::set_level(spdlog::level::from_str(log_level));
     try {
         tessera::CheckStateDir(c.state_dir, init_state);

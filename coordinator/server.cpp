@@ -1,6 +1,7 @@
 #include "server.h"
 
 #include <grpcpp/ext/health_check_service_server_builder_option.h>
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <netdb.h>
@@ -14,10 +15,25 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
+#include "http_server.h"
+#include "metrics.h"
 #include "services.h"
+#include "tessera/v1/tessera.grpc.pb.h"
 
 namespace tessera {
+
+bool SplitHostPort(const std::string& listen, std::string* host, std::string* port) {
+    if (listen.find('/') != std::string::npos || listen.rfind("unix", 0) == 0) return false;
+    const size_t colon = listen.rfind(':');
+    if (colon == std::string::npos) return false;
+    *host = listen.substr(0, colon);
+    *port = listen.substr(colon + 1);
+    if (host->size() >= 2 && host->front() == '[' && host->back() == ']')
+        *host = host->substr(1, host->size() - 2);
+    return true;
+}
 
 namespace {
 
@@ -42,19 +58,6 @@ void WritePortFile(const std::string& path, int port) {
         if (!out) throw std::runtime_error("cannot write " + temp);
     }
     std::filesystem::rename(temp, path);
-}
-
-// The host and port of "host:port" or "[v6]:port"; false for other gRPC addresses
-// ("unix:path", "dns:///host:port").
-bool SplitHostPort(const std::string& listen, std::string* host, std::string* port) {
-    if (listen.find('/') != std::string::npos || listen.rfind("unix", 0) == 0) return false;
-    const size_t colon = listen.rfind(':');
-    if (colon == std::string::npos) return false;
-    *host = listen.substr(0, colon);
-    *port = listen.substr(colon + 1);
-    if (host->size() >= 2 && host->front() == '[' && host->back() == ']')
-        *host = host->substr(1, host->size() - 2);
-    return true;
 }
 
 // Why the coordinator cannot listen on `listen`, found by binding its address as gRPC
@@ -92,6 +95,18 @@ std::string ListenProblem(const std::string& listen) {
     return problem;
 }
 
+// The services health checks may ask about by name, besides "" (the whole server).
+constexpr const char* kServiceNames[] = {v1::Farm::service_full_name(),
+                                         v1::Workers::service_full_name(),
+                                         v1::BlobStore::service_full_name()};
+
+void SetServingStatus(grpc::Server& server, bool serving) {
+    grpc::HealthCheckServiceInterface* health = server.GetHealthCheckService();
+    if (!health) return;
+    health->SetServingStatus(serving);  // "" and every name set so far
+    for (const char* name : kServiceNames) health->SetServingStatus(name, serving);
+}
+
 }  // namespace
 
 void BlockShutdownSignals() {
@@ -106,10 +121,13 @@ void BlockShutdownSignals() {
 int RunServer(const ServerOptions& options) {
     Authenticator auth;
     std::shared_ptr<grpc::ServerCredentials> credentials;
+    std::optional<HttpServerOptions> dashboard;
     try {
         if (!options.security.tokens_file.empty())
             auth = Authenticator::FromFile(options.security.tokens_file);
         CheckListenSecurity(options.listen, options.security, auth.Enabled());
+        if (!options.http_listen.empty())
+            dashboard = DashboardOptions(options.http_listen, options.security, auth.Enabled());
         credentials = MakeServerCredentials(options.security);
         auth.RequireWorkerCertificates(!options.security.tls_client_ca_file.empty());
     } catch (const std::exception& e) {
@@ -117,9 +135,11 @@ int RunServer(const ServerOptions& options) {
         return 1;
     }
     // Before the state is opened: a coordinator started twice must not touch it.
-    if (std::string problem = ListenProblem(options.listen); !problem.empty()) {
-        spdlog::critical("{}", problem);
-        return 1;
+    for (const std::string& listen : {options.listen, options.http_listen}) {
+        if (std::string problem = ListenProblem(listen); !problem.empty()) {
+            spdlog::critical("{}{}", problem, listen == options.listen ? "" : " (--http-listen)");
+            return 1;
+        }
     }
     if (auth.Enabled())
         spdlog::info("tokens: {} client, {} worker (from {})", auth.Count(Role::kClient),
@@ -140,6 +160,8 @@ int RunServer(const ServerOptions& options) {
     std::unique_ptr<grpc::Service> workers = MakeWorkersService(*coordinator, auth);
     std::unique_ptr<grpc::Service> blobs = MakeBlobStoreService(*coordinator, auth);
     grpc::EnableDefaultHealthCheckService(true);
+    // Lets tools (grpcurl, grpc_cli, Postman) list and call the services without the .proto.
+    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort(options.listen, credentials, &port);
@@ -153,32 +175,46 @@ int RunServer(const ServerOptions& options) {
     builder.RegisterService(blobs.get());
     coordinator->Start();
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-    if (!server || port == 0) {
-        std::string problem = ListenProblem(options.listen);
-        if (problem.empty()) problem = "cannot listen on " + options.listen;
+    std::unique_ptr<FarmMetrics> metrics;
+    std::unique_ptr<HttpServer> http;
+    // A start that fails after the coordinator started: everything stops in order.
+    auto give_up = [&](const std::string& problem) {
         spdlog::critical("{}", problem);
+        if (http) http->Stop();
         if (server) server->Shutdown();
         coordinator->StopWaiting();
         coordinator->Stop();
         return 1;
+    };
+    if (!server || port == 0) {
+        std::string problem = ListenProblem(options.listen);
+        return give_up(problem.empty() ? "cannot listen on " + options.listen : problem);
     }
-    if (grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService())
-        health->SetServingStatus(true);
+    SetServingStatus(*server, true);
     spdlog::info("tessera-coordinator listening on {} (port {}, {}); state {}, output {}",
                  options.listen, port,
                  options.security.tls_cert_file.empty()
                      ? "plaintext"
                      : (options.security.tls_client_ca_file.empty() ? "TLS" : "mutual TLS"),
                  options.coordinator.state_dir, options.coordinator.output_dir);
+    if (dashboard) {
+        try {
+            metrics = std::make_unique<FarmMetrics>(*coordinator);
+            http = std::make_unique<HttpServer>(*coordinator, auth,
+                                                [m = metrics.get()] { return m->Scrape(); });
+            const int http_port = http->Start(*dashboard);
+            spdlog::info("dashboard at {} ({})", http->Url(),
+                         auth.Enabled() ? "client tokens only" : "no tokens: open to its callers");
+            if (!options.http_port_file.empty()) WritePortFile(options.http_port_file, http_port);
+        } catch (const std::exception& e) {
+            return give_up(std::string("dashboard: ") + e.what());
+        }
+    }
     if (!options.port_file.empty()) {
         try {
             WritePortFile(options.port_file, port);
         } catch (const std::exception& e) {
-            spdlog::critical("cannot write the port file: {}", e.what());
-            server->Shutdown();
-            coordinator->StopWaiting();
-            coordinator->Stop();
-            return 1;
+            return give_up(std::string("cannot write the port file: ") + e.what());
         }
     }
 
@@ -186,12 +222,14 @@ int RunServer(const ServerOptions& options) {
     int signal = 0;
     sigwait(&set, &signal);
     spdlog::info("received {}; shutting down", signal == SIGTERM ? "SIGTERM" : "SIGINT");
-    if (grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService())
-        health->SetServingStatus(false);
+    SetServingStatus(*server, false);
+    if (http) http->Stop();      // its requests call the coordinator
     coordinator->StopWaiting();  // answer long polls and watches, so the server can drain
     server->Shutdown(std::chrono::system_clock::now() + kShutdownGrace);
     coordinator->Stop();  // finishes the frame being written
     server.reset();
+    http.reset();
+    metrics.reset();
     farm.reset();
     coordinator.reset();  // closes the database
     spdlog::info("tessera-coordinator stopped");
