@@ -37,6 +37,7 @@ struct FarmOptions {
     int threads_per_worker = 0;
     std::string output_dir;
     std::string keep_state;
+    int dashboard_port = -1;  // the coordinator's web dashboard on 127.0.0.1 (-1: none)
     JobOptions job;
     MovieFlags movie;
     bool quiet = false;
@@ -121,17 +122,31 @@ class LocalFarm {
     ~LocalFarm() { Stop(); }
 
     void Start(const std::string& coordinator_bin, const std::string& worker_bin, int workers,
-               int threads) {
+               int threads, int dashboard_port) {
         std::string port_file = state_.Sub("port");
         fs::remove(port_file);
         fs::create_directories(state_.Sub("coordinator"));
         fs::create_directories(state_.Sub("frames"));
-        coordinator_ = std::make_unique<ChildProcess>(
-            std::vector<std::string>{coordinator_bin, "--listen", "127.0.0.1:0", "--port-file",
-                                     port_file, "--state", state_.Sub("coordinator"), "--output",
-                                     state_.Sub("frames")},
-            state_.Sub("coordinator.log"));
+        std::vector<std::string> argv{coordinator_bin,
+                                      "--listen",
+                                      "127.0.0.1:0",
+                                      "--port-file",
+                                      port_file,
+                                      "--state",
+                                      state_.Sub("coordinator"),
+                                      "--output",
+                                      state_.Sub("frames")};
+        const std::string http_port_file = state_.Sub("http-port");
+        if (dashboard_port >= 0) {
+            fs::remove(http_port_file);
+            argv.insert(argv.end(), {"--http-listen", "127.0.0.1:" + std::to_string(dashboard_port),
+                                     "--http-port-file", http_port_file});
+        }
+        coordinator_ =
+            std::make_unique<ChildProcess>(std::move(argv), state_.Sub("coordinator.log"));
         address_ = "127.0.0.1:" + std::to_string(WaitForPort(port_file));
+        if (dashboard_port >= 0)
+            spdlog::info("dashboard: http://127.0.0.1:{}/", WaitForPort(http_port_file));
         spdlog::info("coordinator listening on {}; starting {} worker(s) with {} thread(s) each",
                      address_, workers, threads);
         for (int i = 0; i < workers; ++i) {
@@ -225,7 +240,7 @@ int RunFarmJob(const FarmOptions& o, const v1::JobSpec& spec,
                                         std::max(o.workers, 1));
     LocalFarm farm(state, interrupts);
     try {
-        farm.Start(programs.coordinator, programs.worker, o.workers, threads);
+        farm.Start(programs.coordinator, programs.worker, o.workers, threads, o.dashboard_port);
         int code;
         {
             // The client (and its channel) goes before the farm stops, so the
@@ -298,6 +313,10 @@ void AddFarmCommand(CLI::App& app) {
     cmd->add_option("--threads-per-worker", o->threads_per_worker,
                     "Render threads per worker (default: cores / workers)")
         ->check(AtLeast(0));
+    cmd->add_option("--dashboard", o->dashboard_port,
+                    "Serve the coordinator's web dashboard on 127.0.0.1:PORT while it renders "
+                    "(0: any free port, printed)")
+        ->check(InRange(0, 65535));
     cmd->add_option("--keep-state", o->keep_state,
                     "Keep the coordinator's state, frames and logs in this folder (default: a "
                     "temporary folder, removed unless the job fails)");

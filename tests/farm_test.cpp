@@ -242,15 +242,18 @@ TEST_F(FarmTest, MltMatchesTheLocalRender) {
     ExpectSameImage(RenderLocal(mlt), Download(s, job, 0));
 }
 
-// The README's command: a whole farm on this machine, two frames.
+// The README's command: a whole farm on this machine, two frames, with its dashboard.
 TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
     fs::path out = dir_ / "frames";
     CliResult farm =
         Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
-                    "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string()},
+                    "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string(),
+                    "--dashboard", "0"},
                    kSmall),
             240s);
     ASSERT_EQ(farm.code, 0) << farm.err;
+    EXPECT_NE(farm.err.find("dashboard: http://127.0.0.1:"), std::string::npos) << farm.err;
+    EXPECT_TRUE(fs::exists(dir_ / "farm-state" / "http-port"));
     ExpectSameImage(RenderLocal(kSmall, 0), out / "cornell-box.0000.exr");
     ExpectSameImage(RenderLocal(kSmall, 1), out / "cornell-box.0001.exr");
     EXPECT_TRUE(fs::exists(out / "cornell-box.0001.png"));

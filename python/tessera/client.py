@@ -168,10 +168,38 @@ class TaskFailure:
     message: str
     attempt: int
     stage: str
+    log_tail: str  # the worker's last log lines while it ran the task
+    task: int  # the task's number in its job (Client.log(job, task=...))
 
     @staticmethod
     def from_proto(m: Any) -> "TaskFailure":
         return _copy(TaskFailure, m)
+
+
+@dataclass(frozen=True)
+class JobLogEntry:
+    """One entry of a job's log (Client.log): what happened to the job, a frame or a task."""
+
+    at_unix_ms: int
+    # "submitted", "leased", "done", "failed", "expired", "merged", "frame", "priority",
+    # "cancelled", "retried", "job-failed", "job-done", "requeued"
+    kind: str
+    frame: int  # -1 for job-wide entries
+    stage: str
+    task_index: int  # in its stage; -1 if none
+    task: int  # the task's number in the job; -1 if none
+    worker: str
+    attempt: int
+    message: str
+    log_tail: str  # a failure's worker log lines
+
+    @staticmethod
+    def from_proto(m: Any) -> "JobLogEntry":
+        return _copy(JobLogEntry, m)
+
+    @property
+    def at(self) -> Optional[datetime.datetime]:
+        return _utc(self.at_unix_ms)
 
 
 @dataclass(frozen=True)
@@ -246,12 +274,20 @@ class JobEvent:
 class WorkerStatus:
     worker_id: str
     name: str
-    state: str  # "idle", "busy", "put aside", "silent"
+    state: str  # "idle", "busy", "put aside", "silent", "disabled", "draining"
     threads: int
     tasks_leased: int
     last_seen_unix_ms: int
     failures_in_a_row: int
     put_aside_until_unix_ms: int
+    disabled: bool  # by an operator (Client.set_worker_enabled)
+    current_task: str  # "job-7 frame 3 render 12/64"; "" when idle
+    samples_done: int  # the worker's totals since it started
+    rays_traced: int
+    samples_per_second: float  # over its last heartbeats
+    rays_per_second: float
+    tasks_done: int  # since the coordinator started
+    tasks_failed: int
 
     @staticmethod
     def from_proto(m: Any) -> "WorkerStatus":
@@ -515,6 +551,60 @@ class Client:
             lambda **kw: self._farm.CancelJob(request, **kw), f"cancelling job '{job_id}'"
         )
         return JobStatus.from_proto(m.status)
+
+    def set_priority(self, job_id: str, priority: int) -> JobStatus:
+        """Changes a queued or running job's priority (higher runs first).
+        FAILED_PRECONDITION for a finished job; INVALID_ARGUMENT over the token's
+        max_priority."""
+        request = pb.SetJobPriorityRequest(job_id=job_id, priority=priority)
+        m = self._retrying(
+            lambda **kw: self._farm.SetJobPriority(request, **kw),
+            f"setting the priority of job '{job_id}'",
+        )
+        return JobStatus.from_proto(m)
+
+    def retry(self, job_id: str) -> JobStatus:
+        """Runs a failed or cancelled job again: its unwritten frames are queued, tasks
+        done keep their results. FAILED_PRECONDITION for a done or unfinished job."""
+        request = pb.RetryJobRequest(job_id=job_id)
+        m = self._retrying(
+            lambda **kw: self._farm.RetryJob(request, **kw), f"retrying job '{job_id}'"
+        )
+        return JobStatus.from_proto(m)
+
+    def delete(self, job_id: str) -> Any:
+        """Deletes the job (cancelled first if it runs), its records and the blobs no
+        other job needs; frames already written stay. Returns the coordinator's
+        tessera.v1.DeleteJobResponse (blobs_removed, bytes_removed, blobs_left_for_gc)."""
+        request = pb.DeleteJobRequest(job_id=job_id)
+        # Not repeated: a deletion that reached the coordinator would then be NOT_FOUND.
+        try:
+            return self._farm.DeleteJob(
+                request, timeout=self._call_timeout, metadata=self._metadata
+            )
+        except grpc.RpcError as e:
+            raise _error(e, f"deleting job '{job_id}'") from None
+
+    def log(self, job_id: str, *, task: Optional[int] = None, limit: int = 0) -> List[JobLogEntry]:
+        """The job's log, oldest first: its last `limit` entries (0: up to 1000), of one
+        task (its number in the job) if `task` is given."""
+        request = pb.GetJobLogRequest(job_id=job_id, limit=limit)
+        if task is not None:
+            request.task = task
+        m = self._retrying(
+            lambda **kw: self._farm.GetJobLog(request, **kw), f"reading the log of job '{job_id}'"
+        )
+        return [JobLogEntry.from_proto(e) for e in m.entries]
+
+    def set_worker_enabled(self, worker: str, enabled: bool) -> WorkerStatus:
+        """Disables a worker (it finishes what it holds, then takes no tasks) or enables
+        it again; by name or worker id. NOT_FOUND for an unknown worker."""
+        request = pb.SetWorkerEnabledRequest(worker=worker, enabled=enabled)
+        m = self._retrying(
+            lambda **kw: self._farm.SetWorkerEnabled(request, **kw),
+            f"{'enabling' if enabled else 'disabling'} worker '{worker}'",
+        )
+        return WorkerStatus.from_proto(m)
 
     def watch(
         self, job_id: str, *, timeout: Optional[float] = None, reconnect_seconds: float = 30.0
