@@ -15,6 +15,7 @@
 #include "certificates.h"
 #include "clock.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "security.h"
 #include "services.h"
 #include "sha256.h"
@@ -25,18 +26,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kClientToken = "client-token-0123456789abcdef";
-const std::string kWorkerToken = "worker-token-0123456789abcdef";
+using test::kClientToken;
+using test::kWorkerToken;
 
-constexpr const char* kScene = R"json({
-  "render": {"width": 16, "height": 16, "spp": 2, "integrator": "path", "max_depth": 2,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})json";
+const std::string kScene =
+    test::SphereUnderSkyScene({.width = 16, .height = 16, .spp = 2, .max_depth = 2});
 
 std::string ParseError(const std::string& text) {
     try {

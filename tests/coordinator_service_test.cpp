@@ -19,6 +19,7 @@
 #include "blob_client.h"
 #include "convert.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "errors.h"
 #include "io/image_io.h"
 #include "plan/local_runner.h"
@@ -27,6 +28,7 @@
 #include "services.h"
 #include "sha256.h"
 #include "tessera/v1/tessera.grpc.pb.h"
+#include "test_logs.h"
 
 namespace tessera {
 namespace {
@@ -35,47 +37,21 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 // Warnings and errors only: an info line per lease would drown the test output.
-class QuietLogs : public ::testing::Environment {
-    void SetUp() override { spdlog::set_level(spdlog::level::warn); }
-};
-::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+::testing::Environment* const kQuietLogs = test::QuietLogs(spdlog::level::warn);
 
 // 24x16 pixels in 8-pixel tiles: 3 x 2 = 6 tasks per frame.
-constexpr const char* kScene = R"json({
-  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 4,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})json";
+const std::string kScene =
+    test::SphereUnderSkyScene({.width = 24, .height = 16, .spp = 2, .max_depth = 4});
 constexpr int kTasksPerFrame = 6;
 
-// The same with a floor, for photons to land on.
-constexpr const char* kStagedScene = R"json({
-  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 4,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 1, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"},
-             {"type": "sphere", "center": [0, -101, 0], "radius": 100, "material": "white"}],
-  "lights": [{"type": "point", "position": [1, 3, 2], "intensity": 20}]
-})json";
+// The same size with a floor, for photons to land on.
+const std::string kStagedScene =
+    test::SphereOnFloorScene({.width = 24, .height = 16, .spp = 2, .max_depth = 4});
 
 // Photon mapping with the final gather behind an irradiance cache: per frame 3 photon
 // batches, two irradiance passes and the render stage, 3 + 6 + 6 + 6 tasks.
 RenderOverrides StagedOverrides() {
-    RenderOverrides o;
-    o.integrator = "photon";
-    o.irradiance_cache = true;
-    o.photons_global = 3000;
-    o.photons_caustic = 500;
-    o.photon_batches = 3;
-    o.ic_passes = 2;
-    o.ic_samples = 16;
-    return o;
+    return test::PhotonCacheOverrides({.global = 3000, .caustic = 500, .ic_samples = 16});
 }
 constexpr int kStagedTasksPerFrame = 21;
 
@@ -158,24 +134,11 @@ class CoordinatorTest : public ::testing::Test {
         return hash;
     }
     v1::JobSpec SceneSpec(const std::string& scene = kScene) {
-        v1::JobSpec spec;
-        spec.set_scene_path("shots/scene.json");
-        v1::BundleFile* f = spec.add_files();
-        f->set_path("shots/scene.json");
-        f->set_hash(PutBlob(scene));
-        f->set_size(scene.size());
-        return spec;
+        return test::SceneJob(C(), scene, 1, "shots/scene.json");
     }
 
     std::optional<LeasedTask> LeaseNow(const std::string& worker, int wait_ms = 0) {
-        std::promise<std::optional<LeasedTask>> promise;
-        C().LeaseTask(worker, wait_ms, [&](std::optional<LeasedTask> t, std::exception_ptr e) {
-            if (e)
-                promise.set_exception(e);
-            else
-                promise.set_value(std::move(t));
-        });
-        return promise.get_future().get();
+        return test::LeaseNow(C(), worker, wait_ms);
     }
 
     // What a worker would upload: the encoded result of the task, run with the
@@ -196,21 +159,18 @@ class CoordinatorTest : public ::testing::Test {
         ScratchBuffer arena;
         return renderer.RunTask(stage, task.task_index, artifacts, arena);
     }
-    void RenderAll(const std::string& worker) {
+    // Leases and completes tasks, their results as blobs, until none is left; returns the
+    // results' hashes.
+    std::vector<std::string> RenderAll(const std::string& worker) {
+        std::vector<std::string> results;
         while (std::optional<LeasedTask> t = LeaseNow(worker)) {
-            std::string hash = PutBlob(Render(*t));
-            C().CompleteTask(worker, t->task_id, t->lease_id, t->lease_token, hash);
+            results.push_back(PutBlob(Render(*t)));
+            C().CompleteTask(worker, t->task_id, t->lease_id, t->lease_token, results.back());
         }
+        return results;
     }
     v1::JobStatus WaitFinished(const std::string& job_id) {
-        auto until = std::chrono::steady_clock::now() + 120s;
-        v1::JobStatus st;
-        do {
-            st = C().GetJob(job_id);
-            if (st.state() >= v1::JOB_STATE_DONE) break;
-            std::this_thread::sleep_for(10ms);
-        } while (std::chrono::steady_clock::now() < until);
-        return st;
+        return test::WaitFinished(C(), job_id);
     }
     void ExpectSameAsLocal(const std::string& exr, int frame,
                            const RenderOverrides& overrides = {}) {
@@ -697,11 +657,7 @@ TEST_F(CoordinatorTest, GarbageCollectionKeepsWhatUnfinishedFramesNeed) {
     // A path-traced job rendered to the end: its frame is written.
     v1::JobSpec done_spec = SceneSpec(kStagedScene);
     const std::string done_job = C().SubmitJob(done_spec);
-    std::vector<std::string> done_results;
-    while (std::optional<LeasedTask> t = LeaseNow(w)) {
-        done_results.push_back(PutBlob(Render(*t)));
-        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, done_results.back());
-    }
+    const std::vector<std::string> done_results = RenderAll(w);
     ASSERT_EQ(WaitFinished(done_job).state(), v1::JOB_STATE_DONE);
     ASSERT_FALSE(done_results.empty());
 
@@ -779,11 +735,7 @@ TEST_F(CoordinatorTest, DeleteRemovesTheJobsBlobsButNotWhatAnotherJobNeeds) {
     extra->set_hash(own);
     extra->set_size(28);
     const std::string job = C().SubmitJob(spec);
-    std::vector<std::string> results;
-    while (std::optional<LeasedTask> t = LeaseNow(w)) {
-        results.push_back(PutBlob(Render(*t)));
-        C().CompleteTask(w, t->task_id, t->lease_id, t->lease_token, results.back());
-    }
+    const std::vector<std::string> results = RenderAll(w);
     ASSERT_EQ(WaitFinished(job).state(), v1::JOB_STATE_DONE);
     const std::string exr = C().FrameFile(job, 0, false);
     // A second job with the same scene file, still queued.

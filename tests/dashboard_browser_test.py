@@ -25,15 +25,15 @@ import argparse
 import contextlib
 import json
 import os
-import shutil
 import signal
-import subprocess
 import sys
-import tempfile
 import time
 import unittest
 import urllib.request
 from pathlib import Path
+
+# Beside this file: Python puts the folder of the script it runs first on sys.path.
+from farm_processes import FarmProcesses, farm_argument_parser
 
 try:
     from selenium import webdriver
@@ -75,28 +75,11 @@ def wait_for(what, condition, deadline_s=STEP_DEADLINE_S, interval_s=0.1, on_tim
     raise AssertionError(f"timed out waiting for {what} {last_error or ''}\n{detail}")
 
 
-class Farm:
+class Farm(FarmProcesses):
     """The test's folder and the processes it started."""
 
     def __init__(self):
-        self.dir = Path(tempfile.mkdtemp(prefix="tessera_dashboard_"))
-        self.processes = []
-        self.logs = []
-
-    def start(self, argv, log_name):
-        log = self.dir / f"{log_name}.log"
-        self.logs.append(log)
-        prefix = ["setpriv", "--pdeathsig", "KILL", "--"] if shutil.which("setpriv") else []
-        with open(log, "ab") as out:
-            p = subprocess.Popen(
-                prefix + [str(a) for a in argv],
-                stdin=subprocess.DEVNULL,
-                stdout=out,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
-        self.processes.append(p)
-        return p
+        super().__init__("tessera_dashboard_", ARGS.tessera, CLI_DEADLINE_S)
 
     def read_port(self, path, process):
         def port():
@@ -122,32 +105,6 @@ class Farm:
         # The gRPC port file is written last: once it is there, both ports serve.
         grpc_port = self.read_port(grpc_file, p)
         return grpc_port, self.read_port(http_file, p)
-
-    def cli(self, *args):
-        r = subprocess.run(
-            [ARGS.tessera, *map(str, args)],
-            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=CLI_DEADLINE_S,
-        )
-        if r.returncode != 0:
-            raise AssertionError(f"tessera {' '.join(map(str, args))} exited {r.returncode}:\n"
-                                 f"{r.stderr}")
-        return r.stdout
-
-    def log_tails(self, lines=40):
-        text = []
-        for log in self.logs:
-            tail = log.read_text(errors="replace").splitlines()[-lines:] if log.exists() else []
-            text.append(f"--- {log.name} ---\n" + "\n".join(tail))
-        return "\n".join(text)
-
-    def stop(self):
-        for p in self.processes:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-        for p in self.processes:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                p.wait(timeout=30)
-        self.processes = []
 
 
 def start_browser(profile_dir):
@@ -277,20 +234,11 @@ class DashboardTest(unittest.TestCase):
                         driver.save_screenshot(str(farm.dir / "failure.png"))
                 with contextlib.suppress(Exception):
                     driver.quit()
-            farm.stop()
-            if ok and not os.environ.get("TESSERA_KEEP_TEST_DIRS"):
-                shutil.rmtree(farm.dir, ignore_errors=True)
-            else:
-                sys.stderr.write(f"\n{farm.log_tails()}\nlogs, outputs and a screenshot kept "
-                                 f"in {farm.dir}\n")
+            farm.finish(ok, kept="logs, outputs and a screenshot")
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tessera", required=True, help="the tessera CLI")
-    parser.add_argument("--coordinator", required=True, help="tessera-coordinator")
-    parser.add_argument("--worker", required=True, help="tessera-worker")
-    parser.add_argument("--source-dir", required=True, help="the repository (for scenes/)")
+    parser = farm_argument_parser(__doc__.splitlines()[0])
     parser.add_argument("--chromium", default="/usr/bin/chromium", help="the browser")
     parser.add_argument("--chromedriver", default="/usr/bin/chromedriver",
                         help="its WebDriver (package chromium-driver)")

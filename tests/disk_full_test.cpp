@@ -19,12 +19,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <future>
 #include <string>
 #include <thread>
 
 #include "convert.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "disk_space.h"
 #include "errors.h"
 #include "farm_harness.h"
@@ -48,15 +48,8 @@ using farm_testing::Process;
 using farm_testing::Stubs;
 
 // 24x16 pixels in 8-pixel tiles: 6 tasks.
-constexpr const char* kScene = R"json({
-  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 4,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})json";
+const std::string kScene =
+    test::SphereUnderSkyScene({.width = 24, .height = 16, .spp = 2, .max_depth = 4});
 constexpr int kTasks = 6;
 
 // A tmpfs of `megabytes` at `dir`, unmounted (lazily, so that nothing holds it up) when
@@ -226,26 +219,9 @@ class CoordinatorDiskFullTest : public ::testing::Test {
         }
         return *coordinator_;
     }
-    std::string Submit() {
-        const std::string scene = kScene;
-        v1::JobSpec spec;
-        spec.set_scene_path("scene.json");
-        v1::BundleFile* f = spec.add_files();
-        f->set_path("scene.json");
-        f->set_hash(Sha256Hex(scene));
-        f->set_size(scene.size());
-        C().Blobs().Put(f->hash(), scene);
-        return C().SubmitJob(spec);
-    }
+    std::string Submit() { return C().SubmitJob(test::SceneJob(C(), kScene)); }
     std::optional<LeasedTask> LeaseNow(const std::string& worker) {
-        std::promise<std::optional<LeasedTask>> promise;
-        C().LeaseTask(worker, 0, [&](std::optional<LeasedTask> t, std::exception_ptr e) {
-            if (e)
-                promise.set_exception(e);
-            else
-                promise.set_value(std::move(t));
-        });
-        return promise.get_future().get();
+        return test::LeaseNow(C(), worker);
     }
     // What a worker would send: the task's encoded result.
     std::string Render(const LeasedTask& task) {

@@ -10,12 +10,12 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
-#include <future>
 #include <nlohmann/json.hpp>
 
 #include "certificates.h"
 #include "convert.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "core/arena.h"
 #include "io/image_io.h"
 #include "metrics.h"
@@ -25,34 +25,24 @@
 #include "scene/scene_loader.h"
 #include "sha256.h"
 #include "temp_dir.h"
+#include "test_logs.h"
 
 namespace tessera {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using test::kClientToken;
+using test::kWorkerToken;
 using test::ReadFile;
 
-class QuietLogs : public ::testing::Environment {
-    void SetUp() override { spdlog::set_level(spdlog::level::err); }
-};
-::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+::testing::Environment* const kQuietLogs = test::QuietLogs(spdlog::level::err);
 
 // 32x32 pixels in 8-pixel tiles: 16 render tasks per frame, under a bright sky so that
 // every rendered pixel is lit.
-constexpr const char* kScene = R"json({
-  "render": {"width": 32, "height": 32, "spp": 2, "integrator": "path", "max_depth": 2,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})json";
+const std::string kScene =
+    test::SphereUnderSkyScene({.width = 32, .height = 32, .spp = 2, .max_depth = 2});
 constexpr int kTiles = 16;
-
-const std::string kClientToken = "client-token-0123456789abcdef";
-const std::string kWorkerToken = "worker-token-0123456789abcdef";
 
 class HttpServerTest : public test::TempDirTest {
   protected:
@@ -88,30 +78,13 @@ class HttpServerTest : public test::TempDirTest {
     }
 
     std::string Submit(int frames = 1) {
-        const std::string bytes = kScene;
-        const std::string hash = Sha256Hex(bytes);
-        coordinator_->Blobs().Put(hash, bytes);
-        v1::JobSpec spec;
+        v1::JobSpec spec = test::SceneJob(*coordinator_, kScene, frames);
         spec.set_name("ball");
-        spec.set_scene_path("scene.json");
-        spec.set_frame_start(0);
-        spec.set_frame_end(frames - 1);
-        v1::BundleFile* f = spec.add_files();
-        f->set_path("scene.json");
-        f->set_hash(hash);
-        f->set_size(bytes.size());
         return coordinator_->SubmitJob(spec);
     }
 
     std::optional<LeasedTask> Lease(const std::string& worker) {
-        std::promise<std::optional<LeasedTask>> promise;
-        coordinator_->LeaseTask(worker, 0, [&](std::optional<LeasedTask> t, std::exception_ptr e) {
-            if (e)
-                promise.set_exception(e);
-            else
-                promise.set_value(std::move(t));
-        });
-        return promise.get_future().get();
+        return test::LeaseNow(*coordinator_, worker);
     }
 
     // Leases and completes up to `count` tasks as a worker would (rendering them here).

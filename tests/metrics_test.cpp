@@ -14,7 +14,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <future>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -27,12 +26,14 @@
 #include "blob_store.h"
 #include "convert.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "errors.h"
 #include "plan/frame_renderer.h"
 #include "plan/render_plan.h"
 #include "scene/scene_loader.h"
 #include "sha256.h"
 #include "temp_dir.h"
+#include "test_logs.h"
 
 namespace tessera {
 namespace {
@@ -41,10 +42,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using Labels = std::map<std::string, std::string>;
 
-class QuietLogs : public ::testing::Environment {
-    void SetUp() override { spdlog::set_level(spdlog::level::warn); }
-};
-::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+::testing::Environment* const kQuietLogs = test::QuietLogs(spdlog::level::warn);
 
 // --- a small parser of the text exposition format (version 0.0.4)
 
@@ -183,30 +181,14 @@ TEST(ExpositionTest, ParsesTheTextFormat) {
 // --- the farm's metrics
 
 // 24x16 pixels in 8-pixel tiles: 6 tasks per frame.
-constexpr const char* kScene = R"json({
-  "render": {"width": 24, "height": 16, "spp": 2, "integrator": "path", "max_depth": 3,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 1, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"},
-             {"type": "sphere", "center": [0, -101, 0], "radius": 100, "material": "white"}],
-  "lights": [{"type": "point", "position": [1, 3, 2], "intensity": 20}]
-})json";
+const std::string kScene =
+    test::SphereOnFloorScene({.width = 24, .height = 16, .spp = 2, .max_depth = 3});
 constexpr int kTilesPerFrame = 6;
 
 // Photon mapping with an irradiance cache: per frame 3 photon batches, two irradiance
 // passes of 6 tiles and the render stage's 6 tiles.
 RenderOverrides StagedOverrides() {
-    RenderOverrides o;
-    o.integrator = "photon";
-    o.irradiance_cache = true;
-    o.photons_global = 2000;
-    o.photons_caustic = 200;
-    o.photon_batches = 3;
-    o.ic_passes = 2;
-    o.ic_samples = 8;
-    return o;
+    return test::PhotonCacheOverrides({.global = 2000, .caustic = 200, .ic_samples = 8});
 }
 
 class FarmMetricsTest : public test::TempDirTest {
@@ -255,26 +237,12 @@ class FarmMetricsTest : public test::TempDirTest {
         return hash;
     }
     std::string Submit(int frames, const RenderOverrides* overrides = nullptr) {
-        v1::JobSpec spec;
-        spec.set_scene_path("scene.json");
-        v1::BundleFile* f = spec.add_files();
-        f->set_path("scene.json");
-        f->set_hash(PutBlob(kScene));
-        f->set_size(std::string(kScene).size());
-        spec.set_frame_start(0);
-        spec.set_frame_end(frames - 1);
+        v1::JobSpec spec = test::SceneJob(C(), kScene, frames);
         if (overrides) *spec.mutable_options() = ToProto(*overrides);
         return C().SubmitJob(spec);
     }
     std::optional<LeasedTask> LeaseNow(const std::string& worker) {
-        std::promise<std::optional<LeasedTask>> promise;
-        C().LeaseTask(worker, 0, [&](std::optional<LeasedTask> t, std::exception_ptr e) {
-            if (e)
-                promise.set_exception(e);
-            else
-                promise.set_value(std::move(t));
-        });
-        return promise.get_future().get();
+        return test::LeaseNow(C(), worker);
     }
     // The task's encoded result, rendered with the artifacts it names.
     std::string Render(const LeasedTask& task) {
@@ -307,13 +275,7 @@ class FarmMetricsTest : public test::TempDirTest {
         }
     }
     v1::JobStatus WaitFinished(const std::string& job_id) {
-        const auto until = std::chrono::steady_clock::now() + 120s;
-        v1::JobStatus st;
-        do {
-            st = C().GetJob(job_id);
-            if (st.state() >= v1::JOB_STATE_DONE) break;
-            std::this_thread::sleep_for(10ms);
-        } while (std::chrono::steady_clock::now() < until);
+        const v1::JobStatus st = test::WaitFinished(C(), job_id);
         C().FrameWork().WaitIdle();
         return st;
     }

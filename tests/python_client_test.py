@@ -21,7 +21,6 @@ import argparse
 import contextlib
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -29,6 +28,9 @@ import tempfile
 import time
 import unittest
 from pathlib import Path
+
+# Beside this file: Python puts the folder of the script it runs first on sys.path.
+from farm_processes import FarmProcesses, farm_argument_parser
 
 try:
     import grpc
@@ -60,30 +62,11 @@ for _name in (
     os.environ.pop(_name, None)
 
 
-class Farm:
+class Farm(FarmProcesses):
     """A test's folder and the processes it started."""
 
     def __init__(self, name):
-        self.dir = Path(tempfile.mkdtemp(prefix=f"tessera_pyclient_{name}_"))
-        self.processes = []
-        self.logs = []
-
-    def start(self, argv, log_name, env=None):
-        log = self.dir / f"{log_name}.log"
-        self.logs.append(log)
-        # The kernel kills the child if this process dies without its cleanup.
-        prefix = ["setpriv", "--pdeathsig", "KILL", "--"] if shutil.which("setpriv") else []
-        with open(log, "ab") as out:
-            p = subprocess.Popen(
-                prefix + [str(a) for a in argv],
-                stdin=subprocess.DEVNULL,
-                stdout=out,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-                env=env,
-            )
-        self.processes.append(p)
-        return p
+        super().__init__(f"tessera_pyclient_{name}_", ARGS.tessera, CLI_DEADLINE_S)
 
     def start_coordinator(self, name="coordinator", extra=()):
         """Starts a coordinator on 127.0.0.1, any free port; returns the port once it
@@ -123,36 +106,6 @@ class Farm:
             name,
         )
 
-    def cli(self, *args):
-        """Runs the `tessera` command to its end; returns its stdout."""
-        r = subprocess.run(
-            [ARGS.tessera, *map(str, args)],
-            stdin=subprocess.DEVNULL,
-            capture_output=True,
-            text=True,
-            timeout=CLI_DEADLINE_S,
-        )
-        if r.returncode != 0:
-            command = " ".join(map(str, args))
-            raise AssertionError(f"tessera {command} exited {r.returncode}:\n{r.stderr}")
-        return r.stdout
-
-    def log_tails(self, lines=40):
-        text = []
-        for log in self.logs:
-            tail = log.read_text(errors="replace").splitlines()[-lines:] if log.exists() else []
-            text.append(f"--- {log.name} ---\n" + "\n".join(tail))
-        return "\n".join(text)
-
-    def stop(self):
-        for p in self.processes:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(p.pid, signal.SIGKILL)
-        for p in self.processes:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                p.wait(timeout=30)
-        self.processes = []
-
 
 @contextlib.contextmanager
 def farm_of(test_name):
@@ -164,11 +117,7 @@ def farm_of(test_name):
         yield farm
         ok = True
     finally:
-        farm.stop()
-        if ok and not os.environ.get("TESSERA_KEEP_TEST_DIRS"):
-            shutil.rmtree(farm.dir, ignore_errors=True)
-        else:
-            sys.stderr.write(f"\n{farm.log_tails()}\nlogs and outputs kept in {farm.dir}\n")
+        farm.finish(ok)
 
 
 def image_fingerprint(path):
@@ -398,11 +347,7 @@ class FarmTest(unittest.TestCase):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tessera", required=True, help="the tessera CLI")
-    parser.add_argument("--coordinator", required=True, help="tessera-coordinator")
-    parser.add_argument("--worker", required=True, help="tessera-worker")
-    parser.add_argument("--source-dir", required=True, help="the repository (for scenes/)")
+    parser = farm_argument_parser(__doc__.splitlines()[0])
     args, rest = parser.parse_known_args()
     vars(ARGS).update(vars(args))
     # ctest stops a test that runs too long with SIGTERM: clean up as after a failure.

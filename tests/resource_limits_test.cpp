@@ -22,10 +22,12 @@
 
 #include "blob_client.h"
 #include "coordinator.h"
+#include "coordinator_fixtures.h"
 #include "errors.h"
 #include "services.h"
 #include "sha256.h"
 #include "tessera/v1/tessera.grpc.pb.h"
+#include "test_logs.h"
 
 namespace tessera {
 namespace {
@@ -34,21 +36,11 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using SteadyClock = std::chrono::steady_clock;
 
-class QuietLogs : public ::testing::Environment {
-    void SetUp() override { spdlog::set_level(spdlog::level::err); }
-};
-::testing::Environment* const kQuietLogs = ::testing::AddGlobalTestEnvironment(new QuietLogs);
+::testing::Environment* const kQuietLogs = test::QuietLogs(spdlog::level::err);
 
 // 24x16 pixels in 8-pixel tiles: 3 x 2 = 6 tasks per frame.
-constexpr const char* kScene = R"json({
-  "render": {"width": 24, "height": 16, "spp": 1, "integrator": "path", "max_depth": 2,
-             "tile_size": 8},
-  "camera": {"type": "perspective", "eye": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
-             "fov": 40},
-  "materials": {"white": {"type": "diffuse", "reflectance": 0.8}},
-  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
-  "lights": [{"type": "environment", "radiance": 1}]
-})json";
+const std::string kScene =
+    test::SphereUnderSkyScene({.width = 24, .height = 16, .spp = 1, .max_depth = 2});
 constexpr int kTasksPerFrame = 6;
 
 // Polls `condition` until it holds or `timeout` passes.
@@ -213,20 +205,7 @@ class ResourceLimitsTest : public ::testing::Test {
         blob_stub_ = v1::BlobStore::NewStub(channel);
     }
 
-    v1::JobSpec SceneSpec(int frames = 1) {
-        const std::string scene = kScene;
-        const std::string hash = Sha256Hex(scene);
-        C().Blobs().Put(hash, scene);
-        v1::JobSpec spec;
-        spec.set_scene_path("scene.json");
-        spec.set_frame_start(0);
-        spec.set_frame_end(frames - 1);
-        v1::BundleFile* f = spec.add_files();
-        f->set_path("scene.json");
-        f->set_hash(hash);
-        f->set_size(scene.size());
-        return spec;
-    }
+    v1::JobSpec SceneSpec(int frames = 1) { return test::SceneJob(C(), kScene, frames); }
 
     // Temporary files of uploads in progress in the blob store, and their bytes.
     std::vector<uint64_t> UploadTempFiles() {
