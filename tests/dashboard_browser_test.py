@@ -27,12 +27,12 @@ import json
 import os
 import signal
 import sys
-import time
 import unittest
 import urllib.request
 from pathlib import Path
 
 # Beside this file: Python puts the folder of the script it runs first on sys.path.
+import farm_processes
 from farm_processes import FarmProcesses, farm_argument_parser
 
 try:
@@ -59,20 +59,9 @@ JOB_ARGS = ["--spp", "256", "--width", "256", "--height", "256", "--tile-size", 
 
 
 def wait_for(what, condition, deadline_s=STEP_DEADLINE_S, interval_s=0.1, on_timeout=None):
-    """Polls condition() until it returns something true; returns that value. Fails with
-    `what` (and on_timeout()'s text) after the deadline."""
-    deadline = time.monotonic() + deadline_s
-    last_error = None
-    while time.monotonic() < deadline:
-        try:
-            value = condition()
-            if value:
-                return value
-        except WebDriverException as e:  # an element replaced while being read
-            last_error = e
-        time.sleep(interval_s)
-    detail = on_timeout() if on_timeout else ""
-    raise AssertionError(f"timed out waiting for {what} {last_error or ''}\n{detail}")
+    """farm_processes.wait_for, where an element replaced while being read is "not yet"."""
+    return farm_processes.wait_for(what, condition, deadline_s, interval_s, on_timeout,
+                                   retry_on=(WebDriverException,))
 
 
 class Farm(FarmProcesses):

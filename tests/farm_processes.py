@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 
@@ -97,3 +98,21 @@ class FarmProcesses:
             shutil.rmtree(self.dir, ignore_errors=True)
         else:
             sys.stderr.write(f"\n{self.log_tails()}\n{kept} kept in {self.dir}\n")
+
+
+def wait_for(what, condition, deadline_s=60, interval_s=0.1, on_timeout=None, retry_on=()):
+    """Polls condition() until it returns something true; returns that value. Exceptions
+    of the types in `retry_on` count as "not yet". Fails with `what` (and on_timeout()'s
+    text) after the deadline."""
+    deadline = time.monotonic() + deadline_s
+    last_error = None
+    while time.monotonic() < deadline:
+        try:
+            value = condition()
+            if value:
+                return value
+        except retry_on as e:
+            last_error = e
+        time.sleep(interval_s)
+    detail = on_timeout() if on_timeout else ""
+    raise AssertionError(f"timed out waiting for {what} {last_error or ''}\n{detail}")

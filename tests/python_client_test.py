@@ -30,7 +30,7 @@ import unittest
 from pathlib import Path
 
 # Beside this file: Python puts the folder of the script it runs first on sys.path.
-from farm_processes import FarmProcesses, farm_argument_parser
+from farm_processes import FarmProcesses, farm_argument_parser, wait_for
 
 try:
     import grpc
@@ -274,6 +274,40 @@ class FarmTest(unittest.TestCase):
             self.assertEqual(
                 farm_print, local_print, "the farm's frame equals a local render bit for bit"
             )
+
+    def test_steering_jobs_and_workers(self):
+        scene = Path(ARGS.source_dir) / "scenes/cornell-box/scene.json"
+        with farm_of("steering") as farm:
+            port = farm.start_coordinator()
+            farm.start_worker(port, "w1")
+            with tessera.Client(f"127.0.0.1:{port}") as client:
+                wait_for("w1 to register", lambda: [w.name for w in client.workers()] == ["w1"])
+                disabled = client.set_worker_enabled("w1", False)
+                self.assertTrue(disabled.disabled)
+                self.assertIn(disabled.state, ("disabled", "draining"))
+                job = client.submit(scene, frames=0, spp=2, width=32, height=32, tile_size=16)
+                self.assertEqual(client.set_priority(job, 5).priority, 5)
+                self.assertEqual(client.cancel(job).state, tessera.JobState.CANCELLED)
+                self.assertEqual(client.retry(job).state, tessera.JobState.QUEUED)
+                self.assertFarmError(grpc.StatusCode.FAILED_PRECONDITION, client.retry, job)
+                client.set_worker_enabled("w1", True)
+                self.assertEqual(client.wait(job, timeout=JOB_DEADLINE_S).state, "DONE")
+                kinds = [e.kind for e in client.log(job)]
+                for kind in ("submitted", "priority", "cancelled", "retried", "leased", "done",
+                             "frame", "job-done"):
+                    self.assertIn(kind, kinds)
+                task0 = client.log(job, task=0)
+                self.assertEqual([e.kind for e in task0], ["leased", "done"])
+                self.assertEqual({e.worker for e in task0}, {"w1"})
+                self.assertIsNotNone(task0[0].at)
+                wait_for("w1 to report its samples",
+                         lambda: client.workers()[0].samples_done >= 32 * 32 * 2)
+                self.assertGreater(client.workers()[0].rays_traced, 0)
+                deleted = client.delete(job)
+                self.assertGreater(deleted.blobs_removed, 0)
+                self.assertFarmError(grpc.StatusCode.NOT_FOUND, client.status, job)
+                self.assertFarmError(grpc.StatusCode.NOT_FOUND, client.set_worker_enabled,
+                                     "nobody", False)
 
     def test_errors_carry_the_status_code(self):
         with farm_of("errors") as farm:
