@@ -172,16 +172,22 @@ FramePreview FramePreviews::Get(const std::string& job_id, int frame) {
         if (Entry* cached = Find(key)) return cached->preview;
         FramePreview dark;
         dark.png = EncodePng(DarkImage(job.width(), job.height()));
-        Put(Entry{key, "dark", dark});
+        Put(Entry{key, "dark", dark, std::chrono::steady_clock::now(), {}});
         return dark;
     }
     int total = 0;
     std::string signature = Signature(in, &total);
-    if (Entry* cached = Find(key); cached && cached->signature == signature) return cached->preview;
+    const auto start = std::chrono::steady_clock::now();
+    if (Entry* cached = Find(key)) {
+        if (cached->signature == signature) return cached->preview;
+        // Newer results, but the last preview is too recent for its cost: it stands.
+        if (start - cached->made < kRefreshCostFactor * cached->cost) return cached->preview;
+    }
     FramePreview preview;
     preview.png = EncodePng(AssemblePartialFrame(in, coordinator_.Blobs(), &preview.results_done));
     preview.results_total = total;
-    Put(Entry{key, std::move(signature), preview});
+    const auto made = std::chrono::steady_clock::now();
+    Put(Entry{key, std::move(signature), preview, made, made - start});
     return preview;
 }
 

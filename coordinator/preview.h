@@ -8,8 +8,12 @@
 // finished frame is that frame.
 //
 // A preview is cached per frame until the set of results it was made of changes: polling
-// a frame whose tiles did not change costs one database read and no decoding.
+// a frame whose tiles did not change costs one database read and no decoding. Making one
+// reads and decodes every result of the frame, so a preview is made again no sooner than
+// kRefreshCostFactor times as long as the last one took after it: however many pollers,
+// previews take at most about 1/(1 + kRefreshCostFactor) of a core per frame watched.
 
+#include <chrono>
 #include <cstdint>
 #include <list>
 #include <mutex>
@@ -37,6 +41,8 @@ std::string EncodePng(const Image& image);
 
 class FramePreviews {
   public:
+    static constexpr int kRefreshCostFactor = 4;
+
     // `coordinator` must outlive this object; at most `capacity` previews are cached.
     explicit FramePreviews(Coordinator& coordinator, size_t capacity = 16);
 
@@ -51,6 +57,8 @@ class FramePreviews {
         std::string key;        // job and frame
         std::string signature;  // what the preview was made of
         FramePreview preview;
+        std::chrono::steady_clock::time_point made;  // when it was finished
+        std::chrono::steady_clock::duration cost{};  // how long it took to make
     };
     // The cached entry for `key`, moved to the front; null if none.
     Entry* Find(const std::string& key);

@@ -91,7 +91,10 @@ Scheduler::Scheduler(const std::string& db_path, const SchedulerOptions& options
     const int64_t now = clock_.NowMs();
     last_lease_id_ = store_.GetMeta("last_lease_id", 0);
     for (const WorkerRow& w : store_.Workers()) {
-        Worker& worker = workers_[w.id] = {w.name, w.threads, now, false};
+        Worker& worker = workers_[w.id];
+        worker.name = w.name;
+        worker.threads = w.threads;
+        worker.last_seen_ms = now;
         worker.disabled = w.disabled;
     }
     // A lease from before tokens were stored has an empty one: only its worker, which
@@ -219,7 +222,10 @@ WorkerRegistration Scheduler::RegisterWorker(const std::string& name, int thread
                      threads);
     } else {
         id = store_.InsertWorker(shown, threads, now);
-        workers_[id] = {shown, threads, now, false};
+        Worker& w = workers_[id];
+        w.name = shown;
+        w.threads = threads;
+        w.last_seen_ms = now;
         spdlog::info("worker '{}' registered as {} ({} threads)", shown, FormatWorkerId(id),
                      threads);
     }
@@ -1119,8 +1125,10 @@ std::vector<StageTaskCounts> Scheduler::TaskCountsByStage() {
         const std::optional<int> state = store_.JobState(id);
         if (!state || IsFinished(*state)) continue;
         const std::shared_ptr<const JobInfo> info = Info(id);
-        for (const auto& [stage, counts] : store_.TaskCountsByStage(
+        for (const auto& row : store_.TaskCountsByStage(
                  info->first_task_id, info->first_task_id + info->tasks_total - 1)) {
+            const std::string& stage = row.first;
+            const std::array<int64_t, 5>& counts = row.second;
             auto it = std::find_if(out.begin(), out.end(),
                                    [&](const StageTaskCounts& c) { return c.stage == stage; });
             if (it == out.end()) {
