@@ -93,6 +93,7 @@ int main(int argc, char** argv) {
                 creq.set_worker_id(reg_resp.worker_id());
                 creq.set_task_id(t.task_id());
                 creq.set_lease_id(t.lease_id());
+                creq.set_lease_token(t.lease_token());
                 if (upload_blobs)
                     creq.set_result_hash(UploadBlob(*blobs, EncodeTileResult(r)));
                 else

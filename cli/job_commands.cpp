@@ -224,6 +224,12 @@ void RunLogs(const JobCommandOptions& o) {
         std::string who;
         if (!e.worker().empty()) who = " on " + e.worker();
         if (e.attempt() > 0) who += " attempt " + std::to_string(e.attempt());
+        if (e.leased_unix_ms() > 0 && e.at_unix_ms() >= e.leased_unix_ms()) {
+            char took[64];
+            std::snprintf(took, sizeof took, " (%.1f s after its lease)",
+                          (e.at_unix_ms() - e.leased_unix_ms()) * 1e-3);
+            who += took;
+        }
         std::printf("%s  %-10s %s%s%s%s\n", LocalTime(e.at_unix_ms()).c_str(), e.kind().c_str(),
                     where.c_str(), who.c_str(), e.message().empty() ? "" : ": ",
                     e.message().c_str());
@@ -383,8 +389,8 @@ void AddJobCommands(CLI::App& app) {
     auto logs = std::make_shared<JobCommandOptions>();
     CLI::App* logs_cmd = AddJobCommand(
         app, "logs",
-        "Show a job's log: leases, completions, failures with their worker's log lines, "
-        "expiries, merges, frames",
+        "Show a job's log: each task attempt (done, failed with the worker's log lines, "
+        "expired), merges, frames written, priority changes, cancels, retries",
         logs, true);
     logs_cmd->add_option("--task", logs->task, "Only this task (its number in the job)")
         ->check(AtLeast(int64_t(0)));

@@ -100,14 +100,15 @@ Scheduler::Scheduler(const std::string& db_path, const SchedulerOptions& options
     // A lease from before tokens were stored has an empty one: only its worker, which
     // sends none, may finish it.
     for (const TaskRow& t : store_.LeasedTasks()) {
-        leases_[t.id] = {t.lease_id,
-                         t.worker_id,
-                         t.job_id,
-                         now + options_.lease_ms,
-                         t.lease_token,
-                         t.stage,
-                         fmt::format("{} frame {} {} {}", FormatJobId(t.job_id), t.frame, t.stage,
-                                     t.task_index)};
+        leases_[t.id] = {
+            t.lease_id,
+            t.worker_id,
+            t.job_id,
+            now + options_.lease_ms,
+            t.lease_token,
+            t.stage,
+            fmt::format("{} frame {} {} {}", FormatJobId(t.job_id), t.frame, t.stage, t.task_index),
+            now};
         last_lease_id_ = std::max(last_lease_id_, t.lease_id);
     }
     if (!leases_.empty())
@@ -263,8 +264,6 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
         store_.CountLease(task->job_id, now);
         store_.MarkFrameRendering(task->job_id, task->frame, now);
         const bool frame_started = store_.Db().Changes() == 1;
-        Log(task->job_id, "leased", &*task, info->first_task_id, worker.name, task->attempts + 1,
-            fmt::format("lease {} until {} ms from now", lease_id, options_.lease_ms));
         txn.Commit();
         last_lease_id_ = lease_id;
         ++counters_.leases_granted;
@@ -278,7 +277,8 @@ std::optional<LeasedTask> Scheduler::TryLease(const std::string& worker_id) {
                              token,
                              task->stage,
                              fmt::format("{} frame {} {} {}/{}", job_id, task->frame, task->stage,
-                                         task->task_index + 1, stage_tasks)};
+                                         task->task_index + 1, stage_tasks),
+                             now};
 
         out.emplace();
         out->task_id = task->id;
@@ -519,7 +519,8 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
         TaskRow task;
-        CurrentLease(wid, task_id, lease_id, lease_token, &task);
+        const int64_t leased_ms =
+            CurrentLease(wid, task_id, lease_id, lease_token, &task).leased_ms;
         const std::string job_id = FormatJobId(task.job_id);
         const std::shared_ptr<const JobInfo> info = Info(task.job_id);
         if (task.stage_index < 0 || task.stage_index >= static_cast<int>(info->plan->stages.size()))
@@ -533,7 +534,7 @@ void Scheduler::Complete(const std::string& worker_id, int64_t task_id, int64_t 
         store_.CountFrameTaskDone(task.job_id, task.frame);
         const int stage_done = store_.CountStageTaskDone(task.job_id, task.frame, task.stage_index);
         Log(task.job_id, "done", &task, info->first_task_id, worker.name, task.attempts,
-            fmt::format("result {}", result_hash.substr(0, 12)));
+            fmt::format("result {}", result_hash.substr(0, 12)), {}, leased_ms);
         txn.Commit();
         leases_.erase(task_id);
         worker.failures_in_a_row = 0;
@@ -569,7 +570,8 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
         int64_t wid = 0;
         Worker& worker = FindWorker(worker_id, &wid);
         TaskRow task;
-        CurrentLease(wid, task_id, lease_id, lease_token, &task);
+        const int64_t leased_ms =
+            CurrentLease(wid, task_id, lease_id, lease_token, &task).leased_ms;
         const std::string job_id = FormatJobId(task.job_id);
         const std::string text = Truncate(message.empty() ? "(no message)" : message);
         const int failures = task.failures + 1;
@@ -582,7 +584,8 @@ void Scheduler::Fail(const std::string& worker_id, int64_t task_id, int64_t leas
                              {task.frame, task.task_index, task.attempts, worker.name, text,
                               task.stage, tail, task.id - first_task_id},
                              clock_.NowMs());
-        Log(task.job_id, "failed", &task, first_task_id, worker.name, task.attempts, text, tail);
+        Log(task.job_id, "failed", &task, first_task_id, worker.name, task.attempts, text, tail,
+            leased_ms);
         ++worker.tasks_failed;
         ++counters_.failed_by_stage[task.stage];
         spdlog::warn(
@@ -644,7 +647,8 @@ int Scheduler::Sweep() {
                     const std::optional<JobRow> job = store_.GetJob(lease.job_id);
                     Log(lease.job_id, "expired", &*task, job ? job->first_task_id : 0,
                         WorkerName(lease.worker_id), task->attempts,
-                        fmt::format("lease {} expired; re-queued", lease.lease_id));
+                        fmt::format("lease {} expired; re-queued", lease.lease_id), {},
+                        lease.leased_ms);
                 }
                 ++counters_.leases_expired;
                 ++counters_.expired_by_stage[lease.stage];
@@ -1070,7 +1074,7 @@ std::string Scheduler::FrameExrPath(const std::string& job_id, int frame) {
 
 void Scheduler::Log(int64_t job_id, const char* kind, const TaskRow* task, int64_t first_task_id,
                     const std::string& worker, int attempt, const std::string& message,
-                    const std::string& log_tail) {
+                    const std::string& log_tail, int64_t leased_ms) {
     LogRow e;
     e.job_id = job_id;
     e.at_ms = clock_.NowMs();
@@ -1085,6 +1089,7 @@ void Scheduler::Log(int64_t job_id, const char* kind, const TaskRow* task, int64
     e.attempt = attempt;
     e.message = Truncate(message);
     e.log_tail = log_tail;
+    e.leased_ms = leased_ms;
     store_.InsertLog(e);
 }
 
@@ -1270,6 +1275,7 @@ std::vector<v1::JobLogEntry> Scheduler::JobLog(const std::string& job_id,
         e.set_attempt(r.attempt);
         e.set_message(r.message);
         e.set_log_tail(r.log_tail);
+        e.set_leased_unix_ms(r.leased_ms);
     }
     return out;
 }

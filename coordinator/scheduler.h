@@ -316,6 +316,7 @@ class Scheduler {
         std::string token;
         std::string stage;  // the task's stage name
         std::string what;   // "job-7 frame 3 render 12/64", for people
+        int64_t leased_ms = 0;  // when it was granted (after a restart: when recovered)
     };
     struct Worker {
         std::string name;
@@ -378,10 +379,11 @@ class Scheduler {
     void EndJob(int64_t job_id, int state, const std::string& error);
     v1::JobStatus BuildStatus(int64_t job_id);
     // Appends to the job's log (inside the caller's transaction, if any). `task` (may be
-    // null) gives the frame, stage and task; `first_task_id` its number in the job.
+    // null) gives the frame, stage and task; `first_task_id` its number in the job;
+    // `leased_ms` an attempt's lease time.
     void Log(int64_t job_id, const char* kind, const TaskRow* task, int64_t first_task_id,
              const std::string& worker, int attempt, const std::string& message,
-             const std::string& log_tail = {});
+             const std::string& log_tail = {}, int64_t leased_ms = 0);
     v1::WorkerStatus WorkerStatusOf(int64_t id, const Worker& w, int64_t now);
 
     std::mutex mu_;

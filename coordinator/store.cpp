@@ -105,9 +105,9 @@ CREATE TABLE IF NOT EXISTS job_log(
   worker TEXT NOT NULL,
   attempt INTEGER NOT NULL,
   message TEXT NOT NULL,
-  log_tail TEXT NOT NULL);
+  log_tail TEXT NOT NULL,
+  leased_ms INTEGER NOT NULL);
 CREATE INDEX IF NOT EXISTS job_log_by_job ON job_log(job_id, id);
-CREATE INDEX IF NOT EXISTS job_log_by_task ON job_log(job_id, task, id);
 )sql";
 
 constexpr const char* kJobColumns =
@@ -326,7 +326,8 @@ Store::Store(const std::string& path) : path_(path), db_(path) {
     set_worker_disabled_ = db_.Prepare("UPDATE workers SET disabled = ?2 WHERE id = ?1");
     insert_log_ = db_.Prepare(
         "INSERT INTO job_log(job_id, at_ms, kind, frame, stage, task_index, task, worker, "
-        "attempt, message, log_tail) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+        "attempt, message, log_tail, leased_ms) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, "
+        "?11, ?12)");
 }
 
 void Store::Checkpoint() {
@@ -756,7 +757,7 @@ void Store::SetWorkerDisabled(int64_t id, bool disabled) {
 void Store::InsertLog(const LogRow& e) {
     insert_log_
         .Bind(e.job_id, e.at_ms, e.kind, e.frame, e.stage, e.task_index, e.task, e.worker,
-              e.attempt, e.message, e.log_tail)
+              e.attempt, e.message, e.log_tail, e.leased_ms)
         .Run();
 }
 
@@ -764,10 +765,11 @@ std::vector<LogRow> Store::JobLog(int64_t job_id, std::optional<int64_t> task, i
     // The last `limit` entries, read newest first and returned oldest first.
     SqliteStatement q = db_.Prepare(
         task ? "SELECT job_id, at_ms, kind, frame, stage, task_index, task, worker, attempt, "
-               "message, log_tail FROM job_log WHERE job_id = ?1 AND task = ?2 "
+               "message, log_tail, leased_ms FROM job_log WHERE job_id = ?1 AND task = ?2 "
                "ORDER BY id DESC LIMIT ?3"
              : "SELECT job_id, at_ms, kind, frame, stage, task_index, task, worker, attempt, "
-               "message, log_tail FROM job_log WHERE job_id = ?1 ORDER BY id DESC LIMIT ?3");
+               "message, log_tail, leased_ms FROM job_log WHERE job_id = ?1 ORDER BY id DESC "
+               "LIMIT ?3");
     if (task)
         q.Bind(job_id, *task, limit);
     else
@@ -786,6 +788,7 @@ std::vector<LogRow> Store::JobLog(int64_t job_id, std::optional<int64_t> task, i
         e.attempt = int(q.Int(8));
         e.message = q.Text(9);
         e.log_tail = q.Text(10);
+        e.leased_ms = q.Int(11);
         out.push_back(std::move(e));
     }
     std::reverse(out.begin(), out.end());

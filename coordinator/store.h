@@ -155,6 +155,7 @@ struct LogRow {
     int attempt = 0;
     std::string message;
     std::string log_tail;
+    int64_t leased_ms = 0;  // an attempt's lease time; 0 if none or unknown
 };
 
 class Store {

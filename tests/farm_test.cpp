@@ -245,12 +245,11 @@ TEST_F(FarmTest, MltMatchesTheLocalRender) {
 // The README's command: a whole farm on this machine, two frames, with its dashboard.
 TEST_F(FarmTest, FarmCommandMatchesTheLocalRender) {
     fs::path out = dir_ / "frames";
-    CliResult farm =
-        Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1", "--frames",
-                    "0-1", "-o", out.string(), "--keep-state", (dir_ / "farm-state").string(),
-                    "--dashboard", "0"},
-                   kSmall),
-            240s);
+    CliResult farm = Cli(Concat({"farm", kCornell, "--workers", "2", "--threads-per-worker", "1",
+                                 "--frames", "0-1", "-o", out.string(), "--keep-state",
+                                 (dir_ / "farm-state").string(), "--dashboard", "0"},
+                                kSmall),
+                         240s);
     ASSERT_EQ(farm.code, 0) << farm.err;
     EXPECT_NE(farm.err.find("dashboard: http://127.0.0.1:"), std::string::npos) << farm.err;
     EXPECT_TRUE(fs::exists(dir_ / "farm-state" / "http-port"));
@@ -940,7 +939,7 @@ TEST_F(FarmTest, SteeringCommandsDriveTheFarm) {
     CliResult logs = Cli({"logs", job, "--coordinator", address});
     ASSERT_EQ(logs.code, 0) << logs.err;
     for (const char* kind :
-         {"submitted", "priority", "cancelled", "retried", "leased", "done", "frame", "job-done"})
+         {"submitted", "priority", "cancelled", "retried", "done", "frame", "job-done"})
         EXPECT_NE(logs.out.find(std::string("  ") + kind + " "), std::string::npos) << kind << "\n"
                                                                                     << logs.out;
     CliResult task = Cli({"logs", job, "--task", "3", "--coordinator", address});

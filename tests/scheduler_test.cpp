@@ -1034,14 +1034,16 @@ TEST_F(SchedulerTest, TheJobLogTellsEachTasksAttempts) {
         EXPECT_EQ(e.frame(), 1);
         EXPECT_EQ(e.stage(), "render");
     }
-    EXPECT_EQ(kinds, (std::vector<std::string>{"leased alpha 1", "failed alpha 1", "leased beta 2",
-                                               "expired beta 2", "leased beta 3", "done beta 3"}));
-    EXPECT_EQ(log[1].message(), "out of memory");
-    EXPECT_EQ(log[1].log_tail(), "[worker] loading scene\n[worker] allocating 64 GiB");
+    EXPECT_EQ(kinds, (std::vector<std::string>{"failed alpha 1", "expired beta 2", "done beta 3"}));
+    EXPECT_EQ(log[0].message(), "out of memory");
+    EXPECT_EQ(log[0].log_tail(), "[worker] loading scene\n[worker] allocating 64 GiB");
+    // Each attempt says when its lease began: the expired one a lease period before.
+    EXPECT_EQ(log[1].at_unix_ms() - log[1].leased_unix_ms(), options_.lease_ms + 1);
+    EXPECT_EQ(log[2].leased_unix_ms(), log[2].at_unix_ms());
     // The status's failure carries the tail and the task's number for `tessera logs`.
     const v1::JobStatus st = S().GetJob(job);
     ASSERT_EQ(st.failures_size(), 1);
-    EXPECT_EQ(st.failures(0).log_tail(), log[1].log_tail());
+    EXPECT_EQ(st.failures(0).log_tail(), log[0].log_tail());
     EXPECT_EQ(st.failures(0).task(), 0);
     // The whole log starts with the submission; a limit keeps the latest entries.
     const std::vector<v1::JobLogEntry> all = S().JobLog(job, std::nullopt, 0);

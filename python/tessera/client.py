@@ -181,8 +181,8 @@ class JobLogEntry:
     """One entry of a job's log (Client.log): what happened to the job, a frame or a task."""
 
     at_unix_ms: int
-    # "submitted", "leased", "done", "failed", "expired", "merged", "frame", "priority",
-    # "cancelled", "retried", "job-failed", "job-done", "requeued"
+    # "submitted", "done", "failed", "expired" (a task's attempt), "merged", "frame",
+    # "priority", "cancelled", "retried", "job-failed", "job-done", "requeued"
     kind: str
     frame: int  # -1 for job-wide entries
     stage: str
@@ -192,6 +192,7 @@ class JobLogEntry:
     attempt: int
     message: str
     log_tail: str  # a failure's worker log lines
+    leased_unix_ms: int  # an attempt's: when its lease was granted (0 if unknown)
 
     @staticmethod
     def from_proto(m: Any) -> "JobLogEntry":
