@@ -1,43 +1,18 @@
 #include "dashboard_json.h"
 
+#include <cstring>
 #include <nlohmann/json.hpp>
 
 namespace tessera {
 
 using nlohmann::json;
 
-const char* JobStateName(v1::JobState state) {
-    switch (state) {
-        case v1::JOB_STATE_QUEUED:
-            return "QUEUED";
-        case v1::JOB_STATE_RUNNING:
-            return "RUNNING";
-        case v1::JOB_STATE_DONE:
-            return "DONE";
-        case v1::JOB_STATE_FAILED:
-            return "FAILED";
-        case v1::JOB_STATE_CANCELLED:
-            return "CANCELLED";
-        default:
-            return "UNSPECIFIED";
-    }
+std::string JobStateName(v1::JobState state) {
+    return v1::JobState_Name(state).substr(std::strlen("JOB_STATE_"));
 }
 
-const char* FrameStateName(v1::FrameState state) {
-    switch (state) {
-        case v1::FRAME_STATE_PENDING:
-            return "PENDING";
-        case v1::FRAME_STATE_RENDERING:
-            return "RENDERING";
-        case v1::FRAME_STATE_DONE:
-            return "DONE";
-        case v1::FRAME_STATE_FAILED:
-            return "FAILED";
-        case v1::FRAME_STATE_CANCELLED:
-            return "CANCELLED";
-        default:
-            return "UNSPECIFIED";
-    }
+std::string FrameStateName(v1::FrameState state) {
+    return v1::FrameState_Name(state).substr(std::strlen("FRAME_STATE_"));
 }
 
 namespace {

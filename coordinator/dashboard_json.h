@@ -12,8 +12,8 @@
 namespace tessera {
 
 // "QUEUED", "RUNNING", ...; "UNSPECIFIED" for anything else.
-const char* JobStateName(v1::JobState state);
-const char* FrameStateName(v1::FrameState state);
+std::string JobStateName(v1::JobState state);
+std::string FrameStateName(v1::FrameState state);
 
 // A job with its frames and recent failures, and for the page: "progress" (0..1 of its
 // tasks), "current_frame" (the first frame rendering, else the first not done, else the

@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <functional>
 #include <iterator>
@@ -17,6 +18,7 @@
 #include <set>
 
 #include "coordinator.h"
+#include "dashboard_json.h"
 
 namespace tessera {
 
@@ -41,23 +43,6 @@ constexpr const char* kWorkerStates[] = {"idle",   "busy",     "put aside",
 // many AOVs and splat buffers); merges similarly (a photon map, an irradiance cache).
 const Histogram::BucketBoundaries kWorkBuckets = {0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5,
                                                   1,     2.5,  5,     10,   30,  60,   120};
-
-const char* JobStateName(v1::JobState state) {
-    switch (state) {
-        case v1::JOB_STATE_QUEUED:
-            return "queued";
-        case v1::JOB_STATE_RUNNING:
-            return "running";
-        case v1::JOB_STATE_DONE:
-            return "done";
-        case v1::JOB_STATE_FAILED:
-            return "failed";
-        case v1::JOB_STATE_CANCELLED:
-            return "cancelled";
-        default:
-            return "unspecified";
-    }
-}
 
 // Brings a counter up to `total`, a count kept elsewhere since the coordinator started.
 void AdvanceTo(Counter& counter, double total) {
@@ -279,9 +264,13 @@ void FarmMetrics::Impl::RefreshCounters() {
 }
 
 void FarmMetrics::Impl::RefreshJobs() {
-    std::map<std::string, int> by_state;
-    for (const v1::JobStatus& job : coordinator.ListJobs()) ++by_state[JobStateName(job.state())];
-    for (const char* state : kJobStates) by_state.emplace(state, 0);
+    std::map<std::string, int64_t> by_state;
+    for (const char* state : kJobStates) by_state[state] = 0;
+    for (const auto& [state, n] : coordinator.GetScheduler().JobCountsByState()) {
+        std::string label = JobStateName(state);
+        for (char& c : label) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        by_state[label] += n;
+    }
     for (const auto& [state, n] : by_state) jobs.Add({{"state", state}}).Set(n);
 }
 

@@ -812,6 +812,14 @@ std::vector<v1::JobStatus> Scheduler::ListJobs() {
     return out;
 }
 
+std::map<v1::JobState, int64_t> Scheduler::JobCountsByState() {
+    std::lock_guard lock(mu_);
+    std::map<v1::JobState, int64_t> counts;
+    for (const auto& [state, n] : store_.JobCountsByState())
+        if (v1::JobState_IsValid(state)) counts[static_cast<v1::JobState>(state)] = n;
+    return counts;
+}
+
 v1::JobStatus Scheduler::Cancel(const std::string& job_id) {
     const int64_t id = ParseJobId(job_id);
     v1::JobStatus status;

@@ -257,6 +257,8 @@ class Scheduler {
     // NOT_FOUND for an unknown job.
     v1::JobStatus GetJob(const std::string& job_id);
     std::vector<v1::JobStatus> ListJobs();
+    // How many jobs are in each state (one query, for /metrics).
+    std::map<v1::JobState, int64_t> JobCountsByState();
     // Cancels a queued or running job (its leases are revoked); a finished job is left
     // as it is. Returns the status after.
     v1::JobStatus Cancel(const std::string& job_id);
@@ -314,8 +316,8 @@ class Scheduler {
         int64_t job_id = 0;
         int64_t deadline_ms = 0;
         std::string token;
-        std::string stage;  // the task's stage name
-        std::string what;   // "job-7 frame 3 render 12/64", for people
+        std::string stage;      // the task's stage name
+        std::string what;       // "job-7 frame 3 render 12/64", for people
         int64_t leased_ms = 0;  // when it was granted (after a restart: when recovered)
     };
     struct Worker {

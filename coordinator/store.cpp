@@ -866,6 +866,13 @@ std::vector<std::pair<std::string, std::array<int64_t, 5>>> Store::TaskCountsByS
     return out;
 }
 
+std::vector<std::pair<int, int64_t>> Store::JobCountsByState() {
+    SqliteStatement q = db_.Prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state");
+    std::vector<std::pair<int, int64_t>> out;
+    while (q.Step()) out.emplace_back(int(q.Int(0)), q.Int(1));
+    return out;
+}
+
 std::vector<int64_t> Store::JobsFinishedBefore(int64_t ms) {
     SqliteStatement q = db_.Prepare(
         "SELECT id FROM jobs WHERE state IN (?1, ?2, ?3) AND finished_ms > 0 AND finished_ms < ?4 "

@@ -283,6 +283,8 @@ class Store {
     // Tasks in [first, last] by stage (in plan order) and state (indexed by TaskState).
     std::vector<std::pair<std::string, std::array<int64_t, 5>>> TaskCountsByStage(
         int64_t first_task_id, int64_t last_task_id);
+    // (state, how many jobs are in it).
+    std::vector<std::pair<int, int64_t>> JobCountsByState();
     // DONE, FAILED and CANCELLED jobs that finished before `ms`.
     std::vector<int64_t> JobsFinishedBefore(int64_t ms);
 
